@@ -1,0 +1,111 @@
+"""Diagnostics: the one table of error codes, the message record and how it renders."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .source import SourcePos
+
+# One table: code -> (title, what to write instead). docs/diagnostics.md is generated from it.
+CODES: dict[str, tuple[str, str]] = {
+    "E0001": ("cannot read source file", "check the path and file permissions"),
+    "E0100": ("syntax error", "fix the ST syntax at the position shown"),
+    "E0101": ("'//' line comment", "use (* ... *) comments: MatIEC rejects // comments"),
+    "E0102": ("nested or C-style comment", "use flat (* ... *) comments"),
+    "E0103": ("pragma", "remove {pragmas}: OpenPLC's C build fails on them"),
+    "E0104": ("real literal without digits on both sides of the point",
+              "write 1.0, 0.5, 1.0E3"),
+    "E0105": ("unsupported construct", "rewrite with the IEC 61131-3 subset MatIEC accepts"),
+    "E0106": ("'**' power operator", "use EXPT(x, 2.0) or x * x: OpenPLC lacks __expt"),
+    "E0107": ("missing ';' after END_STRUCT", "write END_STRUCT; inside TYPE ... END_TYPE"),
+    "E0200": ("undeclared name", "declare the variable, type or POU"),
+    "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
+    "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
+              "function/FB names"),
+    "E0203": ("name collides with MatIEC's standard library",
+              "rename it: a POU/type named like a variable of MatIEC's standard library "
+              "breaks OpenPLC's build"),
+    "E0204": ("name becomes a C macro", "rename it: upper-cased it collides with a C macro"),
+    "E0205": ("VAR_EXTERNAL without matching VAR_GLOBAL",
+              "declare the variable in the CONFIGURATION's VAR_GLOBAL with the same type"),
+    "E0206": ("VAR_GLOBAL outside a CONFIGURATION",
+              "pass values as inputs, or declare globals inside CONFIGURATION/RESOURCE"),
+    "E0207": ("VAR_EXTERNAL in a FUNCTION", "pass the value as a VAR_INPUT"),
+    "E0208": ("FB instance inside a FUNCTION", "make the caller a FUNCTION_BLOCK"),
+    "E0209": ("recursion", "IEC 61131-3 forbids recursive calls: use a loop"),
+    "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
+    "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
+    "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "
+              "or FB outputs"),
+    "E0303": ("wrong operand type", "use an operand of the type the operator needs"),
+    "E0304": ("constant out of range", "the folded constant does not fit its type"),
+    "E0305": ("unknown member", "check the STRUCT field or FB variable name"),
+    "E0306": ("not an array", "index only ARRAY variables"),
+    "E0307": ("wrong number of indices", "give one index per array dimension"),
+    "E0308": ("constant index out of bounds", "use an index inside the declared range"),
+    "E0400": ("bad call", "check the POU name and its parameters"),
+    "E0401": ("call without arguments", "pass at least one argument: MatIEC rejects F()"),
+    "E0402": ("mixed named and positional arguments", "pass all arguments named or all "
+              "positional"),
+    "E0403": ("function call as a statement", "assign the result: r := F(x);"),
+    "E0404": ("field access on a call result", "assign the result to a variable first"),
+    "E0405": ("array as FUNCTION VAR_INPUT", "pass it as VAR_IN_OUT, wrap it in a STRUCT, or "
+              "use a FUNCTION_BLOCK input: OpenPLC's C build fails on array inputs"),
+    "E0406": ("anonymous ARRAY return type", "declare a named type: TYPE Mat4 : ARRAY[..] OF "
+              "REAL; END_TYPE"),
+    "E0407": ("unknown parameter", "use a parameter the POU declares"),
+    "E0408": ("FB output written from outside", "read FB outputs; set inputs only"),
+    "E0409": ("missing argument", "pass every input: missing ones are silently zero in MatIEC"),
+    "E0500": ("array bound is not a literal", "write literal bounds: ARRAY[0..3]"),
+    "E0501": ("ARRAY OF ARRAY", "use a multi-dimensional array ARRAY[a..b, c..d]"),
+    "E0502": ("ARRAY of FB instances", "declare the instances one by one"),
+    "E0503": ("too many initial values", "give at most as many values as the array holds"),
+    "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
+              "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
+    "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
+    "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
+    "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
+}
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    pos: SourcePos
+    code: str
+    message: str
+    severity: str = "error"
+
+    def render(self) -> str:
+        return f"{self.pos}: {self.severity}[{self.code}]: {self.message}"
+
+
+@dataclass
+class Diagnostics:
+    """Collects diagnostics of one compilation; suppresses exact repeats."""
+
+    items: list[Diagnostic] = field(default_factory=list)
+
+    def error(self, pos: SourcePos, code: str, message: str) -> None:
+        if code not in CODES:
+            raise KeyError(f"diagnostic code {code} is not in the CODES table")
+        d = Diagnostic(pos, code, message)
+        if d not in self.items:
+            self.items.append(d)
+
+    @property
+    def has_errors(self) -> bool:
+        return any(d.severity == "error" for d in self.items)
+
+    def sorted(self) -> list[Diagnostic]:
+        return sorted(self.items, key=lambda d: (d.pos.file, d.pos.line, d.pos.col, d.code))
+
+    def render(self) -> str:
+        return "\n".join(d.render() for d in self.sorted())
+
+
+class CompileFailed(Exception):
+    """The sources have errors; str() is one rendered diagnostic per line."""
+
+    def __init__(self, diagnostics: list[Diagnostic]) -> None:
+        self.diagnostics = diagnostics
+        super().__init__("\n".join(d.render() for d in diagnostics))

@@ -1,0 +1,286 @@
+"""FFI: load a built library with cffi and drive it from Python. The only module importing cffi.
+
+`Module.call` runs any FUNCTION, `Module.new_fb` / `new_program` make instances whose inputs,
+outputs and internals are read and written by (case-insensitive) ST name; values cross as
+Python bool/int/float, dicts for STRUCTs and nested lists for ARRAYs.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import cffi
+
+from ..faults import PlcFault
+from . import ast as A
+from .emit_c import CUnit
+from .symbols import CheckedProgram, PouSym, VarSym
+from .types import ArrayType, ElemType, EnumType, PouType, StructType, Type
+
+
+class ValueError_(ValueError):
+    pass
+
+
+def _pou_cname(sym: PouSym) -> str:
+    return {"FUNCTION": "FN_", "FUNCTION_BLOCK": "FB_", "PROGRAM": "PRG_"}[sym.kind] + sym.key
+
+
+class Values:
+    """Converts between cffi data and Python values, guided by the ST type."""
+
+    def __init__(self, ffi: cffi.FFI) -> None:
+        self.ffi = ffi
+
+    def to_py(self, c: Any, t: Type) -> Any:
+        if isinstance(t, ElemType):
+            if t.kind == "bool":
+                return bool(c)
+            return c
+        if isinstance(t, EnumType):
+            return int(c)
+        if isinstance(t, ArrayType):
+            flat = [self.to_py(c.v[i], t.element) for i in range(t.size)]
+            return self._reshape(flat, [hi - lo + 1 for lo, hi in t.dims])
+        if isinstance(t, StructType):
+            return {spelling: self.to_py(getattr(c, key), ft)
+                    for key, (spelling, ft) in t.fields.items()}
+        if isinstance(t, PouType):
+            sym = t.symbol
+            assert isinstance(sym, PouSym)
+            return {v.name: self.to_py(getattr(c, v.key), v.type) for v in sym.vars.values()
+                    if v.kind not in (A.VAR_EXTERNAL, A.VAR_IN_OUT, A.VAR_TEMP) and not v.address}
+        raise TypeError(f"cannot convert {t}")
+
+    def _reshape(self, flat: list[Any], shape: list[int]) -> list[Any]:
+        if len(shape) == 1:
+            return flat
+        step = len(flat) // shape[0]
+        return [self._reshape(flat[i * step:(i + 1) * step], shape[1:]) for i in range(shape[0])]
+
+    def assign(self, owner: Any, key: str, t: Type, value: Any, what: str) -> None:
+        """owner.key = value, converting and checking."""
+        if isinstance(t, ElemType | EnumType):
+            setattr(owner, key, self.scalar(t, value, what))
+            return
+        target = getattr(owner, key)
+        self.fill(target, t, value, what)
+
+    def scalar(self, t: Type, value: Any, what: str) -> Any:
+        if isinstance(t, ElemType) and t.is_real:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError_(f"{what}: expected a number for {t}, got {value!r}")
+            return float(value)
+        if isinstance(t, ElemType) and t.kind == "bool":
+            if not isinstance(value, bool | int):
+                raise ValueError_(f"{what}: expected a bool, got {value!r}")
+            return 1 if value else 0
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError_(f"{what}: expected an integer for {t}, got {value!r}")
+        if isinstance(t, ElemType) and t.kind != "time":
+            lo, hi = t.int_range()
+            if not lo <= value <= hi:
+                raise ValueError_(f"{what}: {value} is outside {t.name} ({lo}..{hi})")
+        return value
+
+    def fill(self, target: Any, t: Type, value: Any, what: str) -> None:
+        if isinstance(t, ArrayType):
+            flat = self._flatten(value)
+            if len(flat) != t.size:
+                raise ValueError_(f"{what}: expected {t.size} values for {t}, got {len(flat)}")
+            for i, v in enumerate(flat):
+                if isinstance(t.element, ElemType | EnumType):
+                    target.v[i] = self.scalar(t.element, v, f"{what}[{i}]")
+                else:
+                    self.fill(target.v[i], t.element, v, f"{what}[{i}]")
+            return
+        if isinstance(t, StructType):
+            if not isinstance(value, dict):
+                raise ValueError_(f"{what}: expected a dict for {t.name}, got {value!r}")
+            for k, v in value.items():
+                f = t.fields.get(str(k).upper())
+                if f is None:
+                    raise ValueError_(f"{what}: {t.name} has no field {k!r} (fields: "
+                                      f"{', '.join(s for s, _ in t.fields.values())})")
+                self.assign(target, str(k).upper(), f[1], v, f"{what}.{k}")
+            return
+        raise ValueError_(f"{what}: cannot set a {t} from Python")
+
+    def _flatten(self, value: Any) -> list[Any]:
+        if isinstance(value, list | tuple):
+            out: list[Any] = []
+            for v in value:
+                out.extend(self._flatten(v) if isinstance(v, list | tuple) else [v])
+            return out
+        try:
+            import numpy as np  # optional: accept arrays too
+            if isinstance(value, np.ndarray):
+                return [x.item() for x in value.ravel()]
+        except ImportError:  # pragma: no cover
+            pass
+        raise ValueError_(f"expected a list, got {value!r}")
+
+
+class Instance:
+    """A FUNCTION_BLOCK or PROGRAM instance living in C memory."""
+
+    def __init__(self, module: Module, sym: PouSym, cdata: Any | None = None) -> None:
+        object.__setattr__(self, "_m", module)
+        object.__setattr__(self, "_sym", sym)
+        object.__setattr__(self, "_keep", {})
+        cname = _pou_cname(sym)
+        if cdata is None:
+            cdata = module.ffi.new(f"{cname} *")
+            getattr(module.lib, f"{cname}_init")(cdata)
+        object.__setattr__(self, "_c", cdata)
+        object.__setattr__(self, "_run", getattr(module.lib, f"{cname}_run"))
+
+    def _var(self, name: str) -> VarSym:
+        v = self._sym.vars.get(name.upper())
+        if v is None or v.kind == A.VAR_EXTERNAL:
+            names = ", ".join(x.name for x in self._sym.vars.values())
+            raise AttributeError(f"{self._sym.name} has no variable {name!r} (it has: {names})")
+        return v
+
+    def get(self, name: str) -> Any:
+        v = self._var(name)
+        c = getattr(self._c, v.key)
+        if v.kind == A.VAR_IN_OUT or v.address:
+            if c == self._m.ffi.NULL:
+                raise ValueError_(f"VAR_IN_OUT {v.name} of {self._sym.name} is not bound yet")
+            c = c[0]
+        return self._m.values.to_py(c, v.type)
+
+    def set(self, **values: Any) -> None:
+        for name, value in values.items():
+            v = self._var(name)
+            what = f"{self._sym.name}.{v.name}"
+            if v.kind == A.VAR_IN_OUT:
+                store = self._m.ffi.new(f"{self._m.ffi.getctype(self._m.ffi.typeof(getattr(self._c, v.key)).item)} *")
+                if isinstance(v.type, ElemType | EnumType):
+                    store[0] = self._m.values.scalar(v.type, value, what)
+                else:
+                    self._m.values.fill(store[0], v.type, value, what)
+                self._keep[v.key] = store
+                setattr(self._c, v.key, store)
+            elif v.address:
+                ptr = getattr(self._c, v.key)
+                ptr[0] = self._m.values.scalar(v.type, value, what)
+            else:
+                self._m.values.assign(self._c, v.key, v.type, value, what)
+
+    def __call__(self, **inputs: Any) -> Instance:
+        self.set(**inputs)
+        if self._run(self._c) != 0:
+            raise self._m.fault()
+        return self
+
+    def vars(self) -> dict[str, Any]:
+        return {v.name: self.get(v.name) for v in self._sym.vars.values()
+                if v.kind not in (A.VAR_EXTERNAL, A.VAR_TEMP)
+                and not (v.kind == A.VAR_IN_OUT and getattr(self._c, v.key) == self._m.ffi.NULL)}
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return self.get(name)
+
+    def __getitem__(self, name: str) -> Any:
+        return self.get(name)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        self.set(**{name: value})
+
+
+class Module:
+    """A compiled set of ST files loaded into this process."""
+
+    def __init__(self, prog: CheckedProgram, unit: CUnit, library: Path) -> None:
+        self.program = prog
+        self.ffi = cffi.FFI()
+        self.ffi.cdef(unit.decls)
+        # a private copy: two Modules built from the same sources must not share C globals
+        fd, private = tempfile.mkstemp(suffix=".so", prefix="armbench_")
+        os.close(fd)
+        shutil.copyfile(library, private)
+        try:
+            self.lib: Any = self.ffi.dlopen(private)
+        finally:
+            os.unlink(private)
+        self.values = Values(self.ffi)
+
+    def fault(self) -> PlcFault:
+        msg = self.ffi.string(self.lib.plc_fault_msg()).decode()
+        pos = self.ffi.string(self.lib.plc_fault_pos()).decode()
+        return PlcFault(msg, pos)
+
+    def pou(self, name: str, kinds: Sequence[str]) -> PouSym:
+        sym = self.program.pous.get(name.upper())
+        if sym is None or sym.kind not in kinds:
+            avail = ", ".join(p.name for p in self.program.pous.values() if p.kind in kinds)
+            raise KeyError(f"no {' or '.join(kinds)} named {name!r} (available: {avail})")
+        return sym
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        """Call a FUNCTION; returns its result (see call_full for outputs)."""
+        return self.call_full(name, *args, **kwargs)[0]
+
+    def call_full(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        sym = self.pou(name, ("FUNCTION",))
+        inputs = sym.inputs()
+        if args and kwargs:
+            raise ValueError_(f"{sym.name}: pass arguments all positional or all named")
+        if len(args) > len(inputs):
+            raise ValueError_(f"{sym.name} takes {len(inputs)} inputs, {len(args)} given")
+        frame = Instance(self, sym)
+        named = dict(zip((v.name for v in inputs), args, strict=False)) if args else kwargs
+        frame.set(**named)
+        for v in inputs:
+            if v.kind == A.VAR_IN_OUT and v.key not in frame._keep:
+                raise ValueError_(f"{sym.name}: VAR_IN_OUT {v.name} must be passed")
+        if frame._run(frame._c) != 0:
+            raise self.fault()
+        assert sym.return_type is not None
+        ret = self.values.to_py(frame._c.ret_, sym.return_type)
+        outs = {v.name: frame.get(v.name) for v in sym.vars.values()
+                if v.kind in (A.VAR_OUTPUT, A.VAR_IN_OUT)}
+        return ret, outs
+
+    def new_fb(self, name: str) -> Instance:
+        return Instance(self, self.pou(name, ("FUNCTION_BLOCK",)))
+
+    def new_program(self, name: str) -> Instance:
+        return Instance(self, self.pou(name, ("PROGRAM",)))
+
+    # ---------------------------------------------------------------- configuration access
+    def image_buffer(self) -> memoryview:
+        return memoryview(self.ffi.buffer(self.ffi.addressof(self.lib, "plc_image")))
+
+    def config_init(self) -> None:
+        self.lib.plc_config_init()
+
+    def run_task_index(self, index: int, now_ns: int) -> None:
+        self.lib.plc_set_time(now_ns)
+        rc = self.lib.plc_run_task(index)
+        if rc == 1:
+            raise self.fault()
+        if rc != 0:
+            raise ValueError_(f"no task with index {index}")
+
+    def instance(self, name: str) -> Instance:
+        cfg = self.program.config
+        if cfg is None:
+            raise KeyError("the sources have no CONFIGURATION")
+        for inst in cfg.instances:
+            if inst.name.upper() == name.upper():
+                c = self.ffi.addressof(self.lib.plc_globals, inst.name.upper())
+                return Instance(self, inst.pou, c)
+        raise KeyError(f"no program instance {name!r} in {cfg.name}")
+
+    def set_watchdog(self, ns: int) -> None:
+        self.lib.plc_set_watchdog(ns)

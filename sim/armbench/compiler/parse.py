@@ -1,0 +1,111 @@
+"""Parse: ST text -> tree-sitter syntax tree, with syntax errors as diagnostics.
+
+Uses the established `tree-sitter-iec61131-3-st` grammar. One gap of that grammar is patched
+here without moving any position: typed enumeration literals (`Mode#RUN`) are not in it, so
+their `#` is replaced by `_` before parsing and the byte offsets are remembered; the lowering
+turns identifiers spanning such an offset back into enum literals.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import tree_sitter as ts
+import tree_sitter_iec61131_3_st as st_grammar
+
+from .diagnostics import Diagnostics
+from .source import SourcePos
+
+# Prefixes whose `#` the grammar already understands (typed literals, time/date literals).
+_GRAMMAR_PREFIXES = {
+    "BOOL", "SINT", "INT", "DINT", "LINT", "USINT", "UINT", "UDINT", "ULINT", "BYTE", "WORD",
+    "DWORD", "LWORD", "REAL", "LREAL", "TIME", "T", "LTIME", "LT", "DATE", "D", "TIME_OF_DAY",
+    "TOD", "DATE_AND_TIME", "DT", "STRING", "WSTRING", "CHAR", "WCHAR",
+}
+_ENUM_LITERAL = re.compile(r"\b([A-Za-z_]\w*)#([A-Za-z_]\w*)")
+
+
+@dataclass
+class ParsedFile:
+    path: str
+    text: str
+    data: bytes
+    tree: ts.Tree
+    enum_hash_offsets: frozenset[int]
+    line_starts: list[int]
+
+    def pos(self, node: ts.Node) -> SourcePos:
+        return SourcePos(self.path, node.start_point.row + 1, self._col(node.start_point))
+
+    def pos_at_byte(self, offset: int) -> SourcePos:
+        line = 0
+        lo, hi = 0, len(self.line_starts) - 1
+        while lo <= hi:
+            mid = (lo + hi) // 2
+            if self.line_starts[mid] <= offset:
+                line, lo = mid, mid + 1
+            else:
+                hi = mid - 1
+        col = len(self.data[self.line_starts[line]:offset].decode("utf-8", "replace")) + 1
+        return SourcePos(self.path, line + 1, col)
+
+    def _col(self, point: ts.Point) -> int:
+        start = self.line_starts[point.row] if point.row < len(self.line_starts) else 0
+        return len(self.data[start:start + point.column].decode("utf-8", "replace")) + 1
+
+    def text_of(self, node: ts.Node) -> str:
+        return self.data[node.start_byte:node.end_byte].decode("utf-8", "replace")
+
+
+def _parser() -> ts.Parser:
+    return ts.Parser(ts.Language(st_grammar.language()))
+
+
+def _mask_enum_literals(text: str) -> tuple[str, frozenset[int]]:
+    offsets: set[int] = set()
+    chars = list(text)
+    for m in _ENUM_LITERAL.finditer(text):
+        if m.group(1).upper() in _GRAMMAR_PREFIXES:
+            continue
+        hash_index = m.start(2) - 1
+        chars[hash_index] = "_"
+        offsets.add(len(text[:hash_index].encode("utf-8")))
+    return "".join(chars), frozenset(offsets)
+
+
+def parse_text(path: str, text: str, diags: Diagnostics) -> ParsedFile:
+    masked, offsets = _mask_enum_literals(text)
+    data = masked.encode("utf-8")
+    tree = _parser().parse(data)
+    line_starts = [0] + [i + 1 for i, b in enumerate(data) if b == 0x0A]
+    pf = ParsedFile(path, text, data, tree, offsets, line_starts)
+    _report_syntax_errors(pf, diags)
+    return pf
+
+
+def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
+    if not pf.tree.root_node.has_error:
+        return
+    stack = [pf.tree.root_node]
+    while stack:
+        node = stack.pop()
+        if node.is_missing:
+            diags.error(pf.pos(node), "E0100", f"syntax error: missing '{node.type}'")
+            continue
+        if node.type == "ERROR":
+            diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
+            continue
+        if node.has_error:
+            stack.extend(reversed(node.children))
+
+
+def _describe_error(pf: ParsedFile, node: ts.Node) -> str:
+    snippet = pf.text_of(node).strip().splitlines()
+    first = snippet[0][:40] if snippet else ""
+    prev = node.prev_sibling
+    if prev is not None and pf.text_of(prev).strip().upper().endswith("END_STRUCT"):
+        return "syntax error: ';' expected after END_STRUCT"
+    if first:
+        return f"syntax error: unexpected '{first}'"
+    return "syntax error"

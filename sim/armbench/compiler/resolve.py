@@ -1,0 +1,1144 @@
+"""Resolve and type-check: AST units -> CheckedProgram. Needs: lowered units without syntax errors.
+
+Implements MatIEC's typing: no implicit conversion between elementary types, untyped literals
+take the type their context asks for (integer literals never become REAL), constant
+expressions are folded and range-checked, calls are checked against the callee's interface.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from . import ast as A
+from .diagnostics import Diagnostics
+from .stdlib import CONVERSIONS, STD_FBS, STD_FUNCS, StdFunc
+from .symbols import (
+    CallTarget,
+    CheckedProgram,
+    ConfigModel,
+    InstanceModel,
+    NameRef,
+    PouSym,
+    TaskModel,
+    VarSym,
+)
+from .types import (
+    BOOL,
+    DINT,
+    ELEMENTARY,
+    INT_LIT,
+    LREAL,
+    REAL_LIT,
+    TIME,
+    ArrayType,
+    ElemType,
+    EnumType,
+    LiteralType,
+    PouType,
+    StructType,
+    Type,
+    same_type,
+)
+
+ERROR_T = LiteralType("<error>")  # poison: suppresses follow-up diagnostics
+
+
+class Checker:
+    def __init__(self, units: list[A.SourceUnit], diags: Diagnostics) -> None:
+        self.units = units
+        self.d = diags
+        self.types: dict[str, Type] = {}
+        self.type_decls: dict[str, A.TypeDecl] = {}
+        self.pous: dict[str, PouSym] = {}
+        self.expr_types: dict[A.Expr, Type] = {}
+        self.names: dict[A.Expr, NameRef] = {}
+        self.calls: dict[A.Call, CallTarget] = {}
+        self.consts: dict[A.Expr, int | float] = {}
+        self.globals: dict[str, VarSym] = {}
+        self.enum_values: dict[str, list[tuple[EnumType, int]]] = {}
+        self.call_graph: dict[str, set[str]] = {}
+        self.cur: PouSym | None = None
+        self.loop_depth = 0
+
+    # ================================================================ declarations
+    def run(self) -> CheckedProgram:
+        for name, fields in STD_FBS.items():
+            sym = PouSym(name, "FUNCTION_BLOCK", None, builtin=True)
+            for f in fields:
+                sym.vars[f.name] = VarSym(f.name, ELEMENTARY[f.type], f.kind, False,
+                                          A.SourcePos("<builtin>", 0, 0))
+            self.pous[name] = sym
+            self.types[name] = PouType(name, "FUNCTION_BLOCK", sym)
+        for u in self.units:
+            for td in u.types:
+                self._declare(td.name, td.pos, self.type_decls, td)
+            for p in u.pous:
+                if self._declare(p.name, p.pos, self.pous, PouSym(p.name, p.kind, p)):
+                    if p.kind != "FUNCTION":
+                        self.types[p.name.upper()] = PouType(p.name, p.kind, self.pous[p.name.upper()])
+            for g in u.stray_globals:
+                self.d.error(g.pos, "E0206", "VAR_GLOBAL outside a CONFIGURATION is not "
+                             "portable (MatIEC rejects a CODESYS-style GVL)")
+        for key, td in self.type_decls.items():
+            if key not in self.types:
+                self.types[key] = self.named_type(td, set())
+        for p in self.user_pous():
+            self.declare_pou_vars(p)
+        config = None
+        for u in self.units:
+            for c in u.configs:
+                if config is not None:
+                    self.d.error(c.pos, "E0602", "more than one CONFIGURATION")
+                    continue
+                config = self.configuration(c)
+        for p in self.user_pous():
+            self.check_body(p)
+        self.check_recursion()
+        return CheckedProgram(self.types, {k: v for k, v in self.ordered_pous()},
+                              self.expr_types, self.names, self.calls, config, self.units)
+
+    def user_pous(self) -> list[PouSym]:
+        return [p for p in self.pous.values() if not p.builtin]
+
+    def _declare(self, name: str, pos: A.SourcePos, table: dict[str, object], value: object) -> bool:
+        key = name.upper()
+        if key in self.pous or key in self.type_decls or key in ELEMENTARY:
+            self.d.error(pos, "E0201", f"'{name}' is already declared (names are "
+                         "case-insensitive)")
+            return False
+        table[key] = value
+        return True
+
+    def named_type(self, td: A.TypeDecl, seen: set[str]) -> Type:
+        key = td.name.upper()
+        if key in self.types:
+            return self.types[key]
+        if key in seen:
+            self.d.error(td.pos, "E0200", f"type '{td.name}' is defined through itself")
+            return ERROR_T
+        seen.add(key)
+        t = self.type_from_ref(td.definition, seen, name=td.name)
+        self.types[key] = t
+        return t
+
+    def type_from_ref(self, ref: A.TypeRef, seen: set[str] | None = None,
+                      name: str = "") -> Type:
+        seen = seen if seen is not None else set()
+        if isinstance(ref, A.NamedTypeRef):
+            key = ref.name.upper()
+            if key in ELEMENTARY:
+                return ELEMENTARY[key]
+            if key in self.types:
+                return self.types[key]
+            if key in self.type_decls:
+                return self.named_type(self.type_decls[key], seen)
+            if key.startswith("STRING") or key.startswith("WSTRING"):
+                self.d.error(ref.pos, "E0105", "unsupported construct: STRING variables "
+                             "(the bench models numeric PLC code only)")
+                return ERROR_T
+            self.d.error(ref.pos, "E0200", f"unknown type '{ref.name}'")
+            return ERROR_T
+        if isinstance(ref, A.ArrayTypeRef):
+            dims: list[tuple[int, int]] = []
+            for lo_e, hi_e in ref.ranges:
+                lo, hi = self.literal_bound(lo_e), self.literal_bound(hi_e)
+                if lo is None or hi is None:
+                    return ERROR_T
+                if hi < lo:
+                    self.d.error(lo_e.pos, "E0500", f"empty array range {lo}..{hi}")
+                    return ERROR_T
+                dims.append((lo, hi))
+            if isinstance(ref.element, A.ArrayTypeRef):
+                self.d.error(ref.element.pos, "E0501", "ARRAY OF ARRAY is rejected by MatIEC")
+                return ERROR_T
+            elem = self.type_from_ref(ref.element, seen)
+            if isinstance(elem, ArrayType):
+                self.d.error(ref.element.pos, "E0501", "ARRAY OF an array type is rejected by "
+                             "MatIEC")
+                return ERROR_T
+            if isinstance(elem, PouType):
+                self.d.error(ref.element.pos, "E0502", f"ARRAY OF {elem.name}: arrays of FB "
+                             "instances are rejected by MatIEC")
+                return ERROR_T
+            return ArrayType(dims, elem, name)
+        if isinstance(ref, A.StructTypeRef):
+            st = StructType(name or "<struct>")
+            self.types.setdefault(name.upper(), st) if name else None
+            for f in ref.fields:
+                if f.name.upper() in st.fields:
+                    self.d.error(f.pos, "E0201", f"duplicate field '{f.name}'")
+                    continue
+                ft = self.type_from_ref(f.type, seen)
+                st.fields[f.name.upper()] = (f.name, ft)
+                if f.init is not None:
+                    st.inits[f.name.upper()] = f.init
+                    self.check_init(f.init, ft)
+            return st
+        if isinstance(ref, A.EnumTypeRef):
+            et = EnumType(name or "<enum>")
+            nxt = 0
+            for v in ref.values:
+                if v.value is not None:
+                    c = self.literal_bound(v.value)
+                    nxt = c if c is not None else nxt
+                et.values[v.name.upper()] = (v.name, nxt)
+                self.enum_values.setdefault(v.name.upper(), []).append((et, nxt))
+                nxt += 1
+            return et
+        if isinstance(ref, A.SubrangeTypeRef):
+            base = ELEMENTARY.get(ref.base.upper())
+            if base is None or not base.is_int:
+                self.d.error(ref.pos, "E0300", "a subrange needs an integer base type")
+                return ERROR_T
+            return base
+        self.d.error(ref.pos, "E0105", "unsupported construct: type")
+        return ERROR_T
+
+    def literal_bound(self, e: A.Expr) -> int | None:
+        if isinstance(e, A.Literal) and e.kind == "int" and e.type_prefix is None:
+            return int(e.value)
+        if isinstance(e, A.Unary) and e.op == "-" and isinstance(e.operand, A.Literal) and \
+                e.operand.kind == "int":
+            return -int(e.operand.value)
+        self.d.error(e.pos, "E0500", "array bounds and enum values must be integer literals "
+                     "(MatIEC rejects constant names and expressions here)")
+        return None
+
+    def declare_pou_vars(self, p: PouSym) -> None:
+        assert p.node is not None
+        node = p.node
+        if node.kind == "FUNCTION":
+            if node.return_type is None:
+                self.d.error(node.pos, "E0400", f"FUNCTION {node.name} needs a return type")
+                p.return_type = ERROR_T
+            else:
+                if isinstance(node.return_type, A.ArrayTypeRef):
+                    self.d.error(node.return_type.pos, "E0406", "a FUNCTION cannot return an "
+                                 "anonymous ARRAY type")
+                p.return_type = self.type_from_ref(node.return_type)
+        for blk in node.blocks:
+            if blk.kind == A.VAR_GLOBAL:
+                self.d.error(blk.pos, "E0206", "VAR_GLOBAL inside a POU")
+                continue
+            if blk.kind == A.VAR_EXTERNAL and node.kind == "FUNCTION":
+                self.d.error(blk.pos, "E0207", "VAR_EXTERNAL inside a FUNCTION is rejected by "
+                             "MatIEC")
+            located = [d for d in blk.decls if d.address]
+            if located and len(located) != len(blk.decls):
+                self.d.error(blk.pos, "E0601", "located and plain variables share one VAR "
+                             "block (MatIEC rejects this)")
+            for decl in blk.decls:
+                key = decl.name.upper()
+                if key in p.vars or (node.kind == "FUNCTION" and key == p.key):
+                    self.d.error(decl.pos, "E0201", f"'{decl.name}' is declared twice in "
+                                 f"{p.name} (names are case-insensitive)")
+                    continue
+                t = self.type_from_ref(decl.type)
+                if isinstance(t, PouType):
+                    if node.kind == "FUNCTION":
+                        self.d.error(decl.pos, "E0208", f"FB instance '{decl.name}' inside "
+                                     f"FUNCTION {p.name}")
+                    elif t.kind == "PROGRAM":
+                        self.d.error(decl.pos, "E0300", "a PROGRAM cannot be instantiated in "
+                                     "a POU")
+                if decl.address is not None:
+                    if node.kind != "PROGRAM":
+                        self.d.error(decl.pos, "E0600", "located variables are allowed only in "
+                                     "a PROGRAM or CONFIGURATION, never in a "
+                                     f"{node.kind.replace('_', ' ')}")
+                    self.check_location(decl, t)
+                if blk.kind == A.VAR_IN_OUT and decl.init is not None:
+                    self.d.error(decl.pos, "E0300", "a VAR_IN_OUT cannot have an initial value")
+                if node.kind == "FUNCTION" and blk.kind == A.VAR_INPUT and \
+                        isinstance(t, ArrayType):
+                    self.d.error(decl.pos, "E0405", f"array input '{decl.name}' of FUNCTION "
+                                 f"{p.name}: MatIEC's C for it does not compile")
+                if blk.constant and decl.init is None:
+                    pass
+                p.vars[key] = VarSym(decl.name, t, blk.kind, blk.constant, decl.pos, decl.init,
+                                     decl.address)
+
+    def check_location(self, decl: A.VarDecl, t: Type) -> None:
+        addr = decl.address or ""
+        if isinstance(t, ArrayType) or not isinstance(t, ElemType):
+            self.d.error(decl.pos, "E0600", f"'{decl.name}' at {addr}: only elementary "
+                         "variables can be located")
+            return
+        area, size = addr[1:2], addr[2:3]
+        size_bits = {"X": 1, "W": 16, "D": 32, "L": 64, "B": 8}.get(size)
+        ok_bits = t.bits if t.kind != "bool" else 1
+        if size_bits is None or area not in "IQM" or not _address_numbers(addr, size):
+            self.d.error(decl.pos, "E0600", f"'{addr}' is not a located address this bench "
+                         "maps (use %IX, %QX, %IW, %QW, %MW, %MD, %ML)")
+        elif size_bits != ok_bits:
+            self.d.error(decl.pos, "E0600", f"{t.name} '{decl.name}' does not fit {addr}: the "
+                         f"location holds {size_bits} bits, the type {ok_bits}")
+        elif size == "B" or (area == "M" and size == "X") or (area in "IQ" and size in "DL"):
+            self.d.error(decl.pos, "E0600", f"{addr} is not reachable over OpenPLC's Modbus "
+                         "map (use %IX, %QX, %IW, %QW, %MW, %MD, %ML)")
+        else:
+            nums = _address_numbers(addr, size)
+            assert nums is not None
+            limit = 1024
+            if nums[0] >= limit or (len(nums) > 1 and nums[1] > 7):
+                self.d.error(decl.pos, "E0600", f"{addr} is outside OpenPLC's buffers "
+                             "(index 0..1023, bit 0..7)")
+
+    # ================================================================ configuration
+    def configuration(self, c: A.Configuration) -> ConfigModel | None:
+        if c.name.upper() != "CONFIG0":
+            self.d.error(c.pos, "E0602", f"CONFIGURATION '{c.name}': OpenPLC's upload needs "
+                         "it to be named Config0")
+        if len(c.resources) != 1:
+            self.d.error(c.pos, "E0602", "OpenPLC needs exactly one RESOURCE (Res0)")
+            if not c.resources:
+                return None
+        res = c.resources[0]
+        if res.name.upper() != "RES0":
+            self.d.error(res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
+                         "upload needs it to be named Res0")
+        for blk in c.globals + res.globals:
+            located = [d for d in blk.decls if d.address]
+            if located and len(located) != len(blk.decls):
+                self.d.error(blk.pos, "E0601", "located and plain variables share one "
+                             "VAR_GLOBAL block")
+            for decl in blk.decls:
+                key = decl.name.upper()
+                if key in self.globals:
+                    self.d.error(decl.pos, "E0201", f"global '{decl.name}' declared twice")
+                    continue
+                t = self.type_from_ref(decl.type)
+                if decl.address:
+                    self.check_location(decl, t)
+                v = VarSym(decl.name, t, A.VAR_GLOBAL, blk.constant, decl.pos, decl.init,
+                           decl.address)
+                self.globals[key] = v
+                if decl.init is not None:
+                    self.check_init(decl.init, t)
+        tasks: list[TaskModel] = []
+        for td in res.tasks:
+            interval = td.params.get("INTERVAL")
+            prio = td.params.get("PRIORITY")
+            iv = 0
+            if interval is None:
+                self.d.error(td.pos, "E0602", f"TASK {td.name} has no INTERVAL: the bench and "
+                             "OpenPLC run periodic tasks only")
+            elif isinstance(interval, A.Literal) and interval.kind == "time" and \
+                    int(interval.value) > 0:
+                iv = int(interval.value)
+            else:
+                self.d.error(interval.pos, "E0602", "INTERVAL must be a positive TIME literal")
+            pv = int(prio.value) if isinstance(prio, A.Literal) and prio.kind == "int" else 0
+            tasks.append(TaskModel(td.name, iv, pv, td.pos))
+        if not tasks:
+            self.d.error(res.pos, "E0602", "OpenPLC needs at least one periodic TASK")
+        task_names = {t.name.upper() for t in tasks}
+        instances: list[InstanceModel] = []
+        for pi in res.programs:
+            pou = self.pous.get(pi.type_name.upper())
+            if pou is None or pou.kind != "PROGRAM":
+                self.d.error(pi.pos, "E0200", f"'{pi.type_name}' is not a PROGRAM")
+                continue
+            if pi.task is None or pi.task.upper() not in task_names:
+                self.d.error(pi.pos, "E0602", f"program instance {pi.name} needs "
+                             "WITH <a declared TASK>")
+            instances.append(InstanceModel(pi.name, pi.task, pou, pi.pos))
+        return ConfigModel(c.name, res.name, self.globals, tasks, instances)
+
+    # ================================================================ bodies
+    def check_body(self, p: PouSym) -> None:
+        assert p.node is not None
+        self.cur = p
+        self.call_graph[p.key] = set()
+        for v in p.vars.values():
+            if v.kind == A.VAR_EXTERNAL:
+                g = self.globals.get(v.key)
+                if g is None:
+                    self.d.error(v.pos, "E0205", f"VAR_EXTERNAL '{v.name}' has no VAR_GLOBAL "
+                                 "in the CONFIGURATION")
+                elif not same_type(g.type, v.type):
+                    self.d.error(v.pos, "E0205", f"VAR_EXTERNAL '{v.name}' is {v.type} but the "
+                                 f"global is {g.type}")
+            if v.init is not None:
+                self.check_init(v.init, v.type)
+        self.stmts(p.node.body)
+        self.cur = None
+
+    def check_init(self, init: A.Init, t: Type) -> None:
+        if t is ERROR_T:
+            return
+        if isinstance(init, A.ArrayInit):
+            if not isinstance(t, ArrayType):
+                self.d.error(init.pos, "E0300", f"array initialiser for a {t}")
+                return
+            count = 0
+            for n, v in init.items:
+                reps = 1
+                if n is not None:
+                    reps = self.literal_bound(n) or 0
+                count += reps
+                self.check_init(v, t.element)
+            if count > t.size:
+                self.d.error(init.pos, "E0503", f"{count} initial values for {t.size} "
+                             "elements (MatIEC crashes on this)")
+            return
+        if isinstance(init, A.StructInit):
+            if not isinstance(t, StructType):
+                self.d.error(init.pos, "E0300", f"structure initialiser for a {t}")
+                return
+            for fname, fv in init.fields:
+                f = t.fields.get(fname.upper())
+                if f is None:
+                    self.d.error(init.pos, "E0305", f"{t.name} has no field '{fname}'")
+                    continue
+                self.check_init(fv, f[1])
+            return
+        if isinstance(t, ArrayType):
+            # a single value for a whole array
+            if isinstance(init, A.Literal):
+                self.check_init(A.ArrayInit(init.pos, [(None, init)]), t)
+                return
+        self.coerce_to(init, self.expr(init, t), t, "Initial value")
+        if not self.is_constant(init):
+            self.d.error(init.pos, "E0300", "an initial value must be a constant")
+
+    def is_constant(self, e: A.Expr) -> bool:
+        if isinstance(e, A.Literal):
+            return True
+        if isinstance(e, A.Unary):
+            return self.is_constant(e.operand)
+        if isinstance(e, A.Binary):
+            return self.is_constant(e.left) and self.is_constant(e.right)
+        return False
+
+    def stmts(self, body: list[A.Stmt]) -> None:
+        for s in body:
+            self.stmt(s)
+
+    def stmt(self, s: A.Stmt) -> None:
+        if isinstance(s, A.Assign):
+            tt = self.lvalue(s.target)
+            vt = self.expr(s.value, tt)
+            self.coerce_to(s.value, vt, tt, "':='")
+        elif isinstance(s, A.CallStmt):
+            self.call(s.call, statement=True)
+        elif isinstance(s, A.If):
+            for cond, body in s.branches:
+                self.bool_cond(cond)
+                self.stmts(body)
+            if s.orelse is not None:
+                self.stmts(s.orelse)
+        elif isinstance(s, A.Case):
+            st = self.expr(s.subject, None)
+            if st is not ERROR_T and not (isinstance(st, EnumType) or
+                                          (isinstance(st, ElemType) and (st.is_int or
+                                                                         st.kind == "bits"))):
+                self.d.error(s.subject.pos, "E0303", f"CASE needs an integer or enumerated "
+                             f"selector, not {st}")
+            for cl in s.clauses:
+                for lab in cl.labels:
+                    for e in (lab.low, lab.high):
+                        if e is not None:
+                            self.coerce_to(e, self.expr(e, st), st, "CASE label")
+                self.stmts(cl.body)
+            if s.orelse is not None:
+                self.stmts(s.orelse)
+        elif isinstance(s, A.For):
+            vt = self.lvalue(s.var)
+            if vt is not ERROR_T and not (isinstance(vt, ElemType) and vt.is_int):
+                self.d.error(s.var.pos, "E0303", f"FOR needs an integer control variable, "
+                             f"not {vt}")
+            for e in (s.start, s.end, s.step):
+                if e is not None:
+                    self.coerce_to(e, self.expr(e, vt), vt, "FOR")
+            self.loop_depth += 1
+            self.stmts(s.body)
+            self.loop_depth -= 1
+        elif isinstance(s, A.While | A.Repeat):
+            self.bool_cond(s.cond)
+            self.loop_depth += 1
+            self.stmts(s.body)
+            self.loop_depth -= 1
+        elif isinstance(s, A.Exit | A.Continue):
+            if self.loop_depth == 0:
+                self.d.error(s.pos, "E0400", "EXIT/CONTINUE outside a loop")
+
+    def bool_cond(self, e: A.Expr) -> None:
+        t = self.expr(e, BOOL)
+        self.coerce_to(e, t, BOOL, "condition")
+
+    # ---------------------------------------------------------------- lvalues
+    def lvalue(self, e: A.Expr) -> Type:
+        t = self.expr(e, None)
+        root = e
+        while isinstance(root, A.Member | A.Index):
+            root = root.obj
+        ref = self.names.get(root)
+        if isinstance(e, A.Name) and ref is None and t is not ERROR_T:
+            self.d.error(e.pos, "E0302", f"'{e.name}' cannot be assigned")
+            return ERROR_T
+        if ref is not None and ref.var is not None:
+            v = ref.var
+            if v.constant:
+                self.d.error(e.pos, "E0302", f"'{v.name}' is a CONSTANT")
+            elif self.cur is not None and self.cur.kind == "FUNCTION" and \
+                    v.kind == A.VAR_INPUT and root is e:
+                pass  # MatIEC allows assigning a function's own input (a local copy)
+            if isinstance(e, A.Member) and isinstance(self.expr_types.get(e.obj), PouType):
+                inst_t = self.expr_types[e.obj]
+                assert isinstance(inst_t, PouType)
+                sym = inst_t.symbol
+                assert isinstance(sym, PouSym)
+                mv = sym.vars.get(e.member.upper())
+                if mv is not None and mv.kind == A.VAR_OUTPUT:
+                    self.d.error(e.pos, "E0408", f"'{e.member}' is an output of "
+                                 f"{sym.name}: it cannot be written from outside")
+                elif mv is not None and mv.kind not in (A.VAR_INPUT,):
+                    self.d.error(e.pos, "E0302", f"'{e.member}' is internal to {sym.name}")
+        if isinstance(e, A.Call):
+            self.d.error(e.pos, "E0302", "a call result cannot be assigned")
+        return t
+
+    # ---------------------------------------------------------------- expressions
+    def expr(self, e: A.Expr, expected: Type | None) -> Type:
+        t = self._expr(e, expected)
+        self.expr_types[e] = t
+        return t
+
+    def _expr(self, e: A.Expr, expected: Type | None) -> Type:
+        if isinstance(e, A.Literal):
+            return self.literal(e)
+        if isinstance(e, A.Name):
+            return self.name(e)
+        if isinstance(e, A.Member):
+            if isinstance(e.obj, A.Call):
+                self.d.error(e.pos, "E0404", "field access on a call result ('F(x).X') is "
+                             "rejected by MatIEC")
+                self.expr(e.obj, None)
+                return ERROR_T
+            ot = self.expr(e.obj, None)
+            if ot is ERROR_T:
+                return ERROR_T
+            if isinstance(ot, StructType):
+                f = ot.fields.get(e.member.upper())
+                if f is None:
+                    self.d.error(e.pos, "E0305", f"{ot.name} has no field '{e.member}'")
+                    return ERROR_T
+                return f[1]
+            if isinstance(ot, PouType):
+                sym = ot.symbol
+                assert isinstance(sym, PouSym)
+                v = sym.vars.get(e.member.upper())
+                if v is None or v.kind == A.VAR_TEMP:
+                    self.d.error(e.pos, "E0305", f"{sym.name} has no variable '{e.member}'")
+                    return ERROR_T
+                return v.type
+            self.d.error(e.pos, "E0305", f"'.{e.member}' on a {ot}")
+            return ERROR_T
+        if isinstance(e, A.Index):
+            ot = self.expr(e.obj, None)
+            for i in e.indices:
+                it = self.expr(i, DINT)
+                if isinstance(it, LiteralType) and not it.is_real and it is not ERROR_T:
+                    self.coerce_to(i, it, DINT, "index")
+                elif it is not ERROR_T and not (isinstance(it, ElemType) and it.is_int):
+                    self.d.error(i.pos, "E0303", f"array index must be an integer, not {it}")
+            if ot is ERROR_T:
+                return ERROR_T
+            if not isinstance(ot, ArrayType):
+                self.d.error(e.pos, "E0306", f"indexing a {ot}")
+                return ERROR_T
+            if len(e.indices) != len(ot.dims):
+                self.d.error(e.pos, "E0307", f"{len(e.indices)} indices for a "
+                             f"{len(ot.dims)}-dimensional array")
+                return ERROR_T
+            for i, (lo, hi) in zip(e.indices, ot.dims, strict=True):
+                c = self.consts.get(i)
+                if isinstance(c, int) and not lo <= c <= hi:
+                    self.d.error(i.pos, "E0308", f"index {c} is outside {lo}..{hi}")
+            return ot.element
+        if isinstance(e, A.Unary):
+            return self.unary(e, expected)
+        if isinstance(e, A.Binary):
+            return self.binary(e, expected)
+        if isinstance(e, A.Call):
+            return self.call(e, statement=False, expected=expected)
+        return ERROR_T
+
+    def literal(self, e: A.Literal) -> Type:
+        if e.kind == "enum":
+            assert e.type_prefix is not None
+            et = self.types.get(e.type_prefix.upper())
+            if not isinstance(et, EnumType):
+                self.d.error(e.pos, "E0200", f"'{e.type_prefix}' is not an enumerated type")
+                return ERROR_T
+            v = et.values.get(str(e.value).upper())
+            if v is None:
+                self.d.error(e.pos, "E0200", f"{et.name} has no value '{e.value}'")
+                return ERROR_T
+            self.names[e] = NameRef("enum", enum_value=v[1])
+            return et
+        if e.type_prefix is not None:
+            t = ELEMENTARY.get(e.type_prefix)
+            if t is None:
+                self.d.error(e.pos, "E0300", f"unknown literal type {e.type_prefix}")
+                return ERROR_T
+            base = self.literal(A.Literal(e.pos, e.kind, e.value, e.text))
+            self.check_literal_fits(e, base, t)
+            if isinstance(e.value, int | float) and not isinstance(e.value, bool):
+                self.consts[e] = e.value
+            return t
+        if e.kind == "int":
+            self.consts[e] = int(e.value)
+            return INT_LIT
+        if e.kind == "real":
+            self.consts[e] = float(e.value)
+            return REAL_LIT
+        if e.kind == "bool":
+            return BOOL
+        if e.kind == "time":
+            return TIME
+        return ERROR_T
+
+    def check_literal_fits(self, e: A.Expr, lit_t: Type, t: ElemType) -> None:
+        if lit_t is INT_LIT and (t.is_int or t.is_bits):
+            val = self.consts.get(e)
+            if isinstance(e, A.Literal):
+                val = int(e.value)
+            if isinstance(val, int):
+                lo, hi = t.int_range() if t.kind != "bool" else (0, 1)
+                if t.kind == "bits" and val < 0:
+                    lo = -(1 << (t.bits - 1))
+                if not lo <= val <= hi:
+                    self.d.error(e.pos, "E0304", f"{val} does not fit {t.name} "
+                                 f"({lo}..{hi})")
+        elif lit_t is REAL_LIT and t.is_real:
+            pass
+        elif lit_t is INT_LIT and t.is_real:
+            self.d.error(e.pos, "E0301", f"integer literal where {t.name} is needed: "
+                         "MatIEC has no implicit conversion")
+        else:
+            self.d.error(e.pos, "E0300", f"a {lit_t} cannot be a {t.name}")
+
+    def name(self, e: A.Name) -> Type:
+        key = e.name.upper()
+        assert self.cur is not None or True
+        if self.cur is not None:
+            v = self.cur.vars.get(key)
+            if v is not None:
+                if v.kind == A.VAR_EXTERNAL:
+                    g = self.globals.get(key)
+                    self.names[e] = NameRef("global", g or v)
+                    return v.type
+                self.names[e] = NameRef("var", v)
+                return v.type
+            if self.cur.kind == "FUNCTION" and key == self.cur.key:
+                rv = VarSym(self.cur.name, self.cur.return_type or ERROR_T, "RETURN", False,
+                            e.pos)
+                self.names[e] = NameRef("pou_result", rv)
+                return rv.type
+        ev = self.enum_values.get(key)
+        if ev:
+            if len(ev) > 1:
+                self.d.error(e.pos, "E0200", f"'{e.name}' is a value of several enumerated "
+                             f"types ({', '.join(t.name for t, _ in ev)}): write Type#{e.name}")
+                return ERROR_T
+            self.names[e] = NameRef("enum", enum_value=ev[0][1])
+            return ev[0][0]
+        if key in self.globals:
+            self.d.error(e.pos, "E0200", f"'{e.name}' is a global: declare it VAR_EXTERNAL in "
+                         "this POU")
+            return ERROR_T
+        self.d.error(e.pos, "E0200", f"'{e.name}' is not declared")
+        return ERROR_T
+
+    # ---------------------------------------------------------------- operators
+    def unary(self, e: A.Unary, expected: Type | None) -> Type:
+        if e.op == "-" and isinstance(e.operand, A.Literal) and e.operand.type_prefix is None \
+                and e.operand.kind in ("int", "real"):
+            t = self.expr(e.operand, expected)
+            c = self.consts.get(e.operand)
+            if c is not None:
+                self.consts[e] = -c
+            return t
+        t = self.expr(e.operand, expected)
+        if t is ERROR_T:
+            return t
+        if e.op == "NOT":
+            if isinstance(t, LiteralType) or not (isinstance(t, ElemType) and t.is_bits):
+                self.d.error(e.pos, "E0303", f"NOT needs BOOL or a bit string, not {t}")
+                return ERROR_T
+            return t
+        if isinstance(t, LiteralType):
+            c = self.consts.get(e.operand)
+            if c is not None:
+                self.consts[e] = -c if e.op == "-" else c
+            return t
+        if not (isinstance(t, ElemType) and (t.kind in ("sint", "real", "time"))):
+            self.d.error(e.pos, "E0303", f"unary {e.op} needs a signed number, not {t}")
+            return ERROR_T
+        return t
+
+    _ARITH = {"+", "-", "*", "/", "MOD", "**"}
+    _CMP = {"=", "<>", "<", "<=", ">", ">="}
+    _LOGIC = {"AND", "OR", "XOR"}
+
+    def binary(self, e: A.Binary, expected: Type | None) -> Type:
+        op = e.op
+        sub_expected = expected if op in self._ARITH or op in self._LOGIC else None
+        lt = self.expr(e.left, sub_expected)
+        rt = self.expr(e.right, sub_expected)
+        if lt is ERROR_T or rt is ERROR_T:
+            return ERROR_T
+        if op == "**":
+            self.d.error(e.pos, "E0106", "'**' passes MatIEC but OpenPLC's C build fails "
+                         "(no __expt): write EXPT(x, 2.0) or x * x")
+        # settle untyped literals against the other side
+        if isinstance(lt, LiteralType) and not isinstance(rt, LiteralType):
+            self.coerce_to(e.left, lt, rt, f"'{op}'")
+            lt = rt
+        elif isinstance(rt, LiteralType) and not isinstance(lt, LiteralType):
+            self.coerce_to(e.right, rt, lt, f"'{op}'")
+            rt = lt
+        if isinstance(lt, LiteralType) and isinstance(rt, LiteralType):
+            if op in self._CMP:
+                return BOOL
+            self.fold(e)
+            return REAL_LIT if (lt.is_real or rt.is_real) else INT_LIT
+        if not same_type(lt, rt) and not (op in ("+", "-") and lt is TIME and rt is TIME):
+            self.d.error(e.pos, "E0300", f"'{op}' between {lt} and {rt}: MatIEC has no "
+                         "implicit conversion; convert one side explicitly")
+            return ERROR_T
+        if op in self._CMP:
+            if isinstance(lt, ArrayType | StructType | PouType):
+                self.d.error(e.pos, "E0303", f"'{op}' cannot compare {lt} values")
+                return ERROR_T
+            if isinstance(lt, EnumType) and op not in ("=", "<>"):
+                self.d.error(e.pos, "E0303", f"'{op}' on enumerated values")
+            return BOOL
+        if not isinstance(lt, ElemType):
+            self.d.error(e.pos, "E0303", f"'{op}' needs elementary operands, not {lt}")
+            return ERROR_T
+        if op in self._LOGIC:
+            if not lt.is_bits:
+                self.d.error(e.pos, "E0303", f"{op} needs BOOL or bit strings, not {lt}")
+                return ERROR_T
+            return lt
+        if op == "MOD" and not lt.is_int:
+            self.d.error(e.pos, "E0303", f"MOD needs integers, not {lt}")
+            return ERROR_T
+        if lt.kind == "time" and op in ("+", "-"):
+            return lt
+        if not lt.is_numeric:
+            self.d.error(e.pos, "E0303", f"'{op}' needs numbers, not {lt}")
+            return ERROR_T
+        return lt
+
+    def fold(self, e: A.Binary) -> None:
+        a, b = self.consts.get(e.left), self.consts.get(e.right)
+        if a is None or b is None:
+            return
+        try:
+            if e.op == "+":
+                r: int | float = a + b
+            elif e.op == "-":
+                r = a - b
+            elif e.op == "*":
+                r = a * b
+            elif e.op == "/":
+                if isinstance(a, int) and isinstance(b, int):
+                    q = abs(a) // abs(b)
+                    r = q if (a >= 0) == (b >= 0) else -q
+                else:
+                    r = a / b
+            elif e.op == "MOD" and isinstance(a, int) and isinstance(b, int):
+                r = 0 if b == 0 else abs(a) % abs(b) * (1 if a >= 0 else -1)
+            else:
+                return
+        except ZeroDivisionError:
+            self.d.error(e.pos, "E0304", "division by zero in a constant expression")
+            return
+        self.consts[e] = r
+
+    def coerce_to(self, e: A.Expr, t: Type, target: Type, what: str) -> None:
+        """Check that a value of type t may go where target is needed; settle literals."""
+        if t is ERROR_T or target is ERROR_T:
+            return
+        if isinstance(t, LiteralType):
+            if isinstance(target, ElemType):
+                self.check_literal_fits(e, t, target)
+                if not self.d.has_errors or True:
+                    self.settle(e, target)
+            elif isinstance(target, LiteralType):
+                return
+            else:
+                self.d.error(e.pos, "E0300", f"{what}: a {t} cannot be a {target}")
+            return
+        if same_type(t, target):
+            return
+        self.d.error(e.pos, "E0300", f"{what}: {t} where {target} is needed; MatIEC has no "
+                     "implicit conversion (use an explicit *_TO_* conversion)")
+
+    def settle(self, e: A.Expr, target: ElemType) -> None:
+        """Give untyped literal sub-expressions their context type (for C emission)."""
+        t = self.expr_types.get(e)
+        if not isinstance(t, LiteralType):
+            return
+        self.expr_types[e] = target
+        if isinstance(e, A.Unary):
+            self.settle(e.operand, target)
+        elif isinstance(e, A.Binary):
+            if e.op not in self._CMP:
+                self.settle(e.left, target)
+                self.settle(e.right, target)
+
+    # ---------------------------------------------------------------- calls
+    def call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
+        if not isinstance(c.callee, A.Name):
+            self.d.error(c.pos, "E0400", "only named POUs can be called")
+            return ERROR_T
+        name = c.callee.name
+        key = name.upper()
+        named = [a for a in c.args if a.name is not None]
+        if named and len(named) != len(c.args):
+            self.d.error(c.pos, "E0402", f"call of {name} mixes named and positional "
+                         "arguments (MatIEC rejects this)")
+            for a in c.args:
+                self.expr(a.value, None)
+            return ERROR_T
+        # FB instance call?
+        inst_t: Type | None = None
+        if self.cur is not None and key in self.cur.vars:
+            inst_t = self.cur.vars[key].type
+            self.expr(c.callee, None)
+        if isinstance(inst_t, PouType):
+            sym = inst_t.symbol
+            assert isinstance(sym, PouSym)
+            if not statement:
+                self.d.error(c.pos, "E0400", f"FB instance {name} is called as a statement, "
+                             "not inside an expression")
+            return self.bind(c, sym, "fb", ERROR_T)
+        if inst_t is not None:
+            self.d.error(c.pos, "E0400", f"'{name}' is a {inst_t}, not a FUNCTION or FB "
+                         "instance")
+            return ERROR_T
+        if statement:
+            self.d.error(c.pos, "E0403", f"FUNCTION {name} is called as a statement: MatIEC "
+                         "rejects this; assign its result")
+        if not c.args:
+            self.d.error(c.pos, "E0401", f"{name}() without arguments: MatIEC rejects calls "
+                         "with no argument, even with defaults")
+            if key not in self.pous and key not in STD_FUNCS and key not in CONVERSIONS:
+                return ERROR_T
+        if key in CONVERSIONS:
+            src, dst = CONVERSIONS[key]
+            if len(c.args) != 1:
+                self.d.error(c.pos, "E0400", f"{name} takes one argument")
+                return ERROR_T
+            at = self.expr(c.args[0].value, src)
+            self.coerce_to(c.args[0].value, at, src, f"argument of {name}")
+            self.calls[c] = CallTarget("conv", conv=(src, dst),
+                                       inputs=(("IN", c.args[0].value),))
+            return dst
+        if key in STD_FUNCS:
+            return self.std_call(c, STD_FUNCS[key], expected)
+        sym = self.pous.get(key)
+        if sym is None:
+            if key == "ATAN2":
+                self.d.error(c.pos, "E0400", "ATAN2 is not an IEC standard function: MatIEC "
+                             "has none (use the library's Atan2)")
+            else:
+                self.d.error(c.pos, "E0400", f"'{name}' is not a FUNCTION")
+            for a in c.args:
+                self.expr(a.value, None)
+            return ERROR_T
+        if sym.kind != "FUNCTION":
+            self.d.error(c.pos, "E0400", f"{sym.kind.replace('_', ' ')} {sym.name} must be "
+                         "called through an instance")
+            return ERROR_T
+        if self.cur is not None:
+            self.call_graph.setdefault(self.cur.key, set()).add(key)
+        return self.bind(c, sym, "function", sym.return_type or ERROR_T)
+
+    def bind(self, c: A.Call, sym: PouSym, kind: str, result: Type) -> Type:
+        params = sym.params()
+        inputs: list[tuple[str, A.Expr]] = []
+        outputs: list[tuple[str, A.Expr]] = []
+        if c.args and c.args[0].name is None:
+            formal = [p for p in params if p.kind != A.VAR_OUTPUT] if kind == "fb" else params
+            if kind == "function":
+                formal = [p for p in params if p.kind != A.VAR_OUTPUT]
+            if len(c.args) > len(formal):
+                self.d.error(c.pos, "E0400", f"{sym.name} takes {len(formal)} inputs, "
+                             f"{len(c.args)} given")
+                return ERROR_T
+            pairs = list(zip(formal, c.args, strict=False))
+        else:
+            pairs = []
+            for a in c.args:
+                assert a.name is not None
+                p = sym.vars.get(a.name.upper())
+                if p is None or p.kind not in (A.VAR_INPUT, A.VAR_OUTPUT, A.VAR_IN_OUT):
+                    self.d.error(a.pos, "E0407", f"{sym.name} has no parameter '{a.name}'")
+                    self.expr(a.value, None)
+                    continue
+                if a.is_output != (p.kind == A.VAR_OUTPUT):
+                    self.d.error(a.pos, "E0407", f"'{a.name}' of {sym.name} is a "
+                                 f"{p.kind}: use {'=>' if p.kind == A.VAR_OUTPUT else ':='}")
+                    continue
+                pairs.append((p, a))
+        seen: set[str] = set()
+        for p, a in pairs:
+            if p.key in seen:
+                self.d.error(a.pos, "E0407", f"'{p.name}' given twice")
+                continue
+            seen.add(p.key)
+            if p.kind == A.VAR_OUTPUT:
+                tt = self.lvalue(a.value)
+                self.coerce_to(a.value, p.type, tt, f"output {p.name} of {sym.name}")
+                outputs.append((p.key, a.value))
+            elif p.kind == A.VAR_IN_OUT:
+                tt = self.lvalue(a.value)
+                if tt is not ERROR_T and not same_type(tt, p.type):
+                    self.d.error(a.value.pos, "E0300", f"VAR_IN_OUT {p.name} of {sym.name} "
+                                 f"is {p.type}, the argument is {tt}")
+                inputs.append((p.key, a.value))
+            else:
+                at = self.expr(a.value, p.type)
+                self.coerce_to(a.value, at, p.type, f"input {p.name} of {sym.name}")
+                inputs.append((p.key, a.value))
+        if kind == "function":
+            for p in params:
+                if p.kind == A.VAR_IN_OUT and p.key not in seen:
+                    self.d.error(c.pos, "E0409", f"VAR_IN_OUT {p.name} of {sym.name} must be "
+                                 "passed")
+        self.calls[c] = CallTarget(kind, pou=sym, inputs=tuple(inputs), outputs=tuple(outputs))
+        return result
+
+    def std_call(self, c: A.Call, f: StdFunc, expected: Type | None) -> Type:
+        args = self.order_std_args(c, f)
+        if args is None:
+            return ERROR_T
+        types = [self.expr(a, None) for a in args]
+        if any(t is ERROR_T for t in types):
+            return ERROR_T
+        k = f.kind
+
+        def need(n: int) -> bool:
+            if len(args) != n:
+                self.d.error(c.pos, "E0400", f"{f.name} takes {n} argument(s), {len(args)} "
+                             "given")
+                return False
+            return True
+
+        def unify(exprs: list[A.Expr], ts: list[Type], pref: Type | None) -> Type:
+            concrete = [t for t in ts if not isinstance(t, LiteralType)]
+            if concrete:
+                anchor: Type = concrete[0]
+            elif isinstance(pref, ElemType) and pref.is_numeric:
+                anchor = pref
+            else:
+                anchor = LREAL if any(t is REAL_LIT for t in ts) else DINT
+            for ex, t in zip(exprs, ts, strict=True):
+                self.coerce_to(ex, t, anchor, f"argument of {f.name}")
+            return anchor
+
+        if k in ("real1", "num1", "bits1", "trunc", "move"):
+            if not need(1):
+                return ERROR_T
+            t = types[0]
+            if k == "real1" or k == "trunc":
+                if isinstance(t, LiteralType):
+                    if t is INT_LIT:
+                        self.d.error(args[0].pos, "E0301", f"{f.name} needs REAL or LREAL: "
+                                     "write a real literal (MatIEC rejects SQRT(2))")
+                        return ERROR_T
+                    t = expected if isinstance(expected, ElemType) and expected.is_real \
+                        else REAL_LIT
+                    self.coerce_to(args[0], REAL_LIT, t, f.name) if t is not REAL_LIT else None
+                if t is not REAL_LIT and not (isinstance(t, ElemType) and t.is_real):
+                    self.d.error(args[0].pos, "E0300", f"{f.name} needs REAL or LREAL, not "
+                                 f"{t}")
+                    return ERROR_T
+                self.calls[c] = CallTarget("std", std=f, inputs=(("IN", args[0]),))
+                if k == "trunc":
+                    if isinstance(expected, ElemType) and expected.is_int:
+                        return expected
+                    return DINT
+                return t
+            if k == "num1" and not (isinstance(t, LiteralType) or
+                                    (isinstance(t, ElemType) and t.is_numeric)):
+                self.d.error(args[0].pos, "E0300", f"ABS needs a number, not {t}")
+                return ERROR_T
+            if k == "bits1" and not (isinstance(t, ElemType) and t.is_bits):
+                self.d.error(args[0].pos, "E0300", f"NOT needs BOOL or bits, not {t}")
+                return ERROR_T
+            t = unify(args, types, expected)
+            self.calls[c] = CallTarget("std", std=f, inputs=(("IN", args[0]),))
+            return t
+        if k == "expt":
+            if not need(2):
+                return ERROR_T
+            t0 = types[0]
+            if t0 is INT_LIT or (isinstance(t0, ElemType) and not t0.is_real):
+                self.d.error(args[0].pos, "E0300", f"EXPT needs a REAL or LREAL base, not {t0}")
+                return ERROR_T
+            if isinstance(t0, LiteralType):
+                t0 = expected if isinstance(expected, ElemType) and expected.is_real else LREAL
+                self.coerce_to(args[0], REAL_LIT, t0, "EXPT")
+            t1 = types[1]
+            if isinstance(t1, LiteralType):
+                t1 = t0 if t1 is REAL_LIT else DINT
+                self.coerce_to(args[1], types[1], t1, "EXPT")
+            elif not (isinstance(t1, ElemType) and t1.is_numeric):
+                self.d.error(args[1].pos, "E0300", f"EXPT exponent must be a number, not {t1}")
+                return ERROR_T
+            self.calls[c] = CallTarget("std", std=f, inputs=(("IN1", args[0]),
+                                                            ("IN2", args[1])))
+            return t0
+        if k in ("same_n", "limit", "int2", "bits_n"):
+            if k == "limit" and not need(3):
+                return ERROR_T
+            if k == "int2" and not need(2):
+                return ERROR_T
+            if len(args) < 2:
+                self.d.error(c.pos, "E0400", f"{f.name} needs at least 2 arguments")
+                return ERROR_T
+            t = unify(args, types, expected)
+            if k == "int2" and not (isinstance(t, ElemType) and t.is_int):
+                self.d.error(c.pos, "E0300", f"{f.name} needs integers, not {t}")
+            if k == "bits_n" and not (isinstance(t, ElemType) and t.is_bits):
+                self.d.error(c.pos, "E0300", f"{f.name} needs BOOL or bits, not {t}")
+            if not isinstance(t, ElemType):
+                self.d.error(c.pos, "E0300", f"{f.name} needs elementary arguments, not {t}")
+                return ERROR_T
+            self.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
+                                                                  for i, a in enumerate(args)))
+            return t
+        if k == "sel":
+            if not need(3):
+                return ERROR_T
+            self.coerce_to(args[0], types[0], BOOL, "SEL selector")
+            t = unify(args[1:], types[1:], expected)
+            self.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
+                                                                  for i, a in enumerate(args)))
+            return t
+        if k == "mux":
+            if len(args) < 2:
+                self.d.error(c.pos, "E0400", "MUX needs a selector and inputs")
+                return ERROR_T
+            kt = types[0]
+            if isinstance(kt, LiteralType):
+                self.coerce_to(args[0], kt, DINT, "MUX selector")
+            elif not (isinstance(kt, ElemType) and kt.is_int):
+                self.d.error(args[0].pos, "E0300", f"MUX selector must be an integer, not {kt}")
+            t = unify(args[1:], types[1:], expected)
+            self.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
+                                                                  for i, a in enumerate(args)))
+            return t
+        if k == "shift":
+            if not need(2):
+                return ERROR_T
+            t0 = types[0]
+            if not (isinstance(t0, ElemType) and t0.kind == "bits"):
+                self.d.error(args[0].pos, "E0300", f"{f.name} needs a bit string (BYTE, WORD, "
+                             f"DWORD, LWORD), not {t0}")
+                return ERROR_T
+            t1 = types[1]
+            if isinstance(t1, LiteralType):
+                self.coerce_to(args[1], t1, DINT if t1 is INT_LIT else t1, f.name)
+            elif not (isinstance(t1, ElemType) and t1.is_int):
+                self.d.error(args[1].pos, "E0300", f"{f.name} shift count must be an integer")
+            self.calls[c] = CallTarget("std", std=f, inputs=(("IN", args[0]), ("N", args[1])))
+            return t0
+        return ERROR_T
+
+    def order_std_args(self, c: A.Call, f: StdFunc) -> list[A.Expr] | None:
+        if not c.args or c.args[0].name is None:
+            return [a.value for a in c.args]
+        if "*" in f.params:
+            out: dict[int, A.Expr] = {}
+            for a in c.args:
+                assert a.name is not None
+                n = a.name.upper()
+                if n == "K" and f.name == "MUX":
+                    out[-1] = a.value
+                elif n.startswith("IN") and n[2:].isdigit():
+                    out[int(n[2:])] = a.value
+                else:
+                    self.d.error(a.pos, "E0407", f"{f.name} has no parameter '{a.name}'")
+                    return None
+            return [out[k] for k in sorted(out)]
+        by_name = {p: i for i, p in enumerate(f.params)}
+        vals: list[A.Expr | None] = [None] * len(f.params)
+        for a in c.args:
+            assert a.name is not None
+            i = by_name.get(a.name.upper())
+            if i is None:
+                self.d.error(a.pos, "E0407", f"{f.name} has no parameter '{a.name}' "
+                             f"(it takes {', '.join(f.params)})")
+                return None
+            vals[i] = a.value
+        if any(v is None for v in vals):
+            self.d.error(c.pos, "E0409", f"{f.name} needs all of {', '.join(f.params)}")
+            return None
+        return [v for v in vals if v is not None]
+
+    # ---------------------------------------------------------------- whole program
+    def check_recursion(self) -> None:
+        state: dict[str, int] = {}
+
+        def visit(k: str, path: list[str]) -> None:
+            state[k] = 1
+            for callee in sorted(self.call_graph.get(k, ())):
+                if state.get(callee) == 1:
+                    sym = self.pous[callee]
+                    assert sym.node is not None
+                    self.d.error(sym.node.pos, "E0209", f"recursive call cycle: "
+                                 f"{' -> '.join(path + [callee])}")
+                elif state.get(callee) is None:
+                    visit(callee, path + [callee])
+            state[k] = 2
+
+        for k in self.call_graph:
+            if k not in state:
+                visit(k, [k])
+
+    def ordered_pous(self) -> Iterable[tuple[str, PouSym]]:
+        """Callees and instance types before their users, so C declarations come first."""
+        done: set[str] = set()
+        out: list[tuple[str, PouSym]] = []
+
+        def deps(p: PouSym) -> set[str]:
+            d = set(self.call_graph.get(p.key, ()))
+            for v in p.vars.values():
+                if isinstance(v.type, PouType) and not v.type.symbol.builtin:  # type: ignore
+                    d.add(v.type.name.upper())
+            return d
+
+        def visit(p: PouSym, stack: set[str]) -> None:
+            if p.key in done or p.key in stack:
+                return
+            stack.add(p.key)
+            for dk in sorted(deps(p)):
+                dp = self.pous.get(dk)
+                if dp is not None and not dp.builtin:
+                    visit(dp, stack)
+            done.add(p.key)
+            out.append((p.key, p))
+
+        for p in self.user_pous():
+            visit(p, set())
+        return out
+
+
+def _address_numbers(addr: str, size: str) -> list[int] | None:
+    body = addr[3:] if size in "XWDLB" and len(addr) > 3 else addr[2:]
+    try:
+        return [int(x) for x in body.split(".")]
+    except ValueError:
+        return None
+
+
+def check(units: list[A.SourceUnit], diags: Diagnostics) -> CheckedProgram:
+    return Checker(units, diags).run()

@@ -1,0 +1,172 @@
+"""Portability rules that are not typing: comments, literal forms, reserved and colliding names.
+
+Needs: parsed files (lexical rules) and a CheckedProgram (name rules). The name lists of
+MatIEC's standard library are data files in data/ (see docs/diagnostics.md for each rule).
+"""
+
+from __future__ import annotations
+
+import re
+from functools import cache
+from pathlib import Path
+
+from . import ast as A
+from .diagnostics import Diagnostics
+from .parse import ParsedFile
+from .source import SourcePos
+from .symbols import CheckedProgram
+from .types import ELEMENTARY
+
+DATA = Path(__file__).parent / "data"
+
+KEYWORDS = {
+    "ACTION", "END_ACTION", "ARRAY", "OF", "AT", "CASE", "ELSE", "END_CASE", "CONFIGURATION",
+    "END_CONFIGURATION", "CONSTANT", "DO", "BY", "EXIT", "CONTINUE", "FALSE", "TRUE", "FOR",
+    "TO", "END_FOR", "FROM", "FUNCTION", "END_FUNCTION", "FUNCTION_BLOCK",
+    "END_FUNCTION_BLOCK", "IF", "THEN", "ELSIF", "END_IF", "INITIAL_STEP", "INTERVAL",
+    "NON_RETAIN", "NOT", "AND", "OR", "XOR", "MOD", "ON", "PRIORITY", "PROGRAM", "END_PROGRAM",
+    "READ_ONLY", "READ_WRITE", "REPEAT", "UNTIL", "END_REPEAT", "RESOURCE", "END_RESOURCE",
+    "RETAIN", "RETURN", "SINGLE", "STEP", "END_STEP", "STRUCT", "END_STRUCT", "TASK",
+    "TRANSITION", "END_TRANSITION", "TYPE", "END_TYPE", "VAR", "END_VAR", "VAR_INPUT",
+    "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_EXTERNAL", "VAR_GLOBAL", "VAR_ACCESS",
+    "VAR_CONFIG", "WHILE", "END_WHILE", "WITH", "EN", "ENO", "STRING", "WSTRING", "TIME",
+    "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT", "ANY", "ANY_NUM", "ANY_INT",
+    "ANY_REAL", "ANY_BIT", "ANY_DERIVED", "ANY_ELEMENTARY", "ANY_MAGNITUDE", "ANY_DATE",
+    "ANY_STRING", "REF", "REF_TO", "NULL", "POINTER", "METHOD", "INTERFACE", "EXTENDS",
+}
+
+# Upper-cased, these are C macros of the headers OpenPLC's C build includes.
+_C_MACRO_RE = re.compile(
+    r"^(EOF|NULL|BUFSIZ|FILENAME_MAX|RAND_MAX|EXIT_SUCCESS|EXIT_FAILURE|CHAR_BIT|NAN|INFINITY|"
+    r"HUGE_VAL[FL]?|M_[A-Z0-9_]+|FP_[A-Z]+|(U?INT(8|16|32|64)?|S?CHAR|U?SHRT|U?LONG|LLONG|"
+    r"ULLONG|SIZE|PTRDIFF|INTMAX|UINTMAX|INTPTR|UINTPTR|WCHAR|SIG_ATOMIC)_(MAX|MIN)|"
+    r"(FLT|DBL|LDBL)_[A-Z_]+|SEEK_(SET|CUR|END)|PATH_MAX|NAME_MAX|O_[A-Z]+|E[A-Z]{3,}|"
+    r"S_I[A-Z]+|TRUE|FALSE|BOOL|__\w+)$")
+_ERRNO_LIKE = {"ERROR", "EXEC", "EVENT", "ELBOW", "ENABLE", "END", "ENTRY", "EXTRA", "EDGE",
+               "EMPTY", "EXACT", "EPSILON", "EXPECTED", "EXTENT"}
+
+
+@cache
+def _names(file: str) -> frozenset[str]:
+    lines = (DATA / file).read_text().splitlines()
+    return frozenset(ln.strip().upper() for ln in lines if ln.strip() and not ln.startswith("#"))
+
+
+def stdlib_pou_names() -> frozenset[str]:
+    return _names("stdlib-pou-names.txt")
+
+
+def stdlib_variable_names() -> frozenset[str]:
+    return _names("stdlib-variable-names.txt")
+
+
+def is_c_macro(name: str) -> bool:
+    up = name.upper()
+    errno_like = up.startswith("E") and re.fullmatch(r"E[A-Z]{3,}", up) is not None
+    if errno_like:
+        return up in _ERRNO_NAMES
+    return _C_MACRO_RE.match(up) is not None
+
+
+_ERRNO_NAMES = {"EPERM", "ENOENT", "ESRCH", "EINTR", "EIO", "ENXIO", "E2BIG", "ENOEXEC",
+                "EBADF", "ECHILD", "EAGAIN", "ENOMEM", "EACCES", "EFAULT", "EBUSY", "EEXIST",
+                "EXDEV", "ENODEV", "ENOTDIR", "EISDIR", "EINVAL", "ENFILE", "EMFILE",
+                "ENOTTY", "EFBIG", "ENOSPC", "ESPIPE", "EROFS", "EMLINK", "EPIPE", "EDOM",
+                "ERANGE", "EDEADLK", "ENOSYS", "ENOTEMPTY", "ETIMEDOUT", "EOVERFLOW"}
+
+# ------------------------------------------------------------------ lexical rules
+_LEADING_DOT = re.compile(rb"(?<![\w.\]#)])\.\d")
+_TRAILING_DOT = re.compile(rb"(?<![\w#.])\d+\.(?![\d.])")
+
+
+def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
+    stack = [pf.tree.root_node]
+    comment_spans: list[tuple[int, int]] = []
+    while stack:
+        n = stack.pop()
+        if n.type == "comment":
+            text = pf.text_of(n)
+            comment_spans.append((n.start_byte, n.end_byte))
+            if text.startswith("//"):
+                diags.error(pf.pos(n), "E0101", "'//' line comments are rejected by MatIEC: "
+                            "use (* ... *)")
+            elif text.startswith("/*"):
+                diags.error(pf.pos(n), "E0102", "C-style /* */ comments are rejected by "
+                            "MatIEC: use (* ... *)")
+            elif "(*" in text[2:]:
+                diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected by "
+                            "MatIEC: use flat comments")
+            continue
+        if n.type == "pragma":
+            diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
+                        "fails on them: remove it")
+            continue
+        if n.type == "real_literal" and "." not in pf.text_of(n):
+            diags.error(pf.pos(n), "E0104", f"real literal '{pf.text_of(n)}' needs a point "
+                        "with digits on both sides (MatIEC rejects 1E3): write 1.0E3")
+        stack.extend(n.children)
+    # `.5` and `1.` do not parse at all; say what is wrong instead of only "syntax error"
+    code = bytearray(pf.data)
+    for a, b in comment_spans:
+        code[a:b] = b" " * (b - a)
+    for m in re.finditer(rb"/\*.*?\*/", bytes(code), re.S):
+        diags.error(pf.pos_at_byte(m.start()), "E0102", "C-style /* */ comments are rejected "
+                    "by MatIEC: use (* ... *)")
+    for rx, what in ((_LEADING_DOT, "no digit before the point"),
+                     (_TRAILING_DOT, "no digit after the point")):
+        for m in rx.finditer(bytes(code)):
+            diags.error(pf.pos_at_byte(m.start()), "E0104", f"real literal with {what}: "
+                        "write 0.5 or 1.0 (MatIEC rejects .5 and 1.)")
+
+
+# ------------------------------------------------------------------ name rules
+def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
+    pou_names = stdlib_pou_names()
+    var_names = stdlib_variable_names()
+
+    def reserved(name: str) -> bool:
+        up = name.upper()
+        return up in KEYWORDS or up in ELEMENTARY or up in pou_names
+
+    def check(name: str, pos: SourcePos, what: str, global_name: bool) -> None:
+        up = name.upper()
+        if reserved(name):
+            diags.error(pos, "E0202", f"{what} '{name}' is reserved in MatIEC (a keyword, type "
+                        "or standard function/FB name): rename it")
+        elif global_name and up in var_names:
+            diags.error(pos, "E0203", f"{what} '{name}' equals a variable name inside MatIEC's "
+                        "standard library, which then fails to compile: rename it")
+        elif is_c_macro(name):
+            diags.error(pos, "E0204", f"{what} '{name}' becomes the C macro {up} in OpenPLC's "
+                        "build: rename it")
+
+    for unit in prog.units:
+        for td in unit.types:
+            check(td.name, td.pos, "type", True)
+            d = td.definition
+            if isinstance(d, A.StructTypeRef):
+                for f in d.fields:
+                    check(f.name, f.pos, "field", False)
+            if isinstance(d, A.EnumTypeRef):
+                for v in d.values:
+                    check(v.name, v.pos, "enumeration value", False)
+        for pou in unit.pous:
+            check(pou.name, pou.pos, pou.kind.replace("_", " ").lower(), True)
+            for blk in pou.blocks:
+                for decl in blk.decls:
+                    check(decl.name, decl.pos, "variable", False)
+        for cfg in unit.configs:
+            check(cfg.name, cfg.pos, "configuration", True)
+            for res in cfg.resources:
+                if res.name:
+                    check(res.name, res.pos, "resource", True)
+                for t in res.tasks:
+                    check(t.name, t.pos, "task", True)
+                for pi in res.programs:
+                    check(pi.name, pi.pos, "program instance", True)
+                for blk in res.globals:
+                    for decl in blk.decls:
+                        check(decl.name, decl.pos, "global", False)
+            for blk in cfg.globals:
+                for decl in blk.decls:
+                    check(decl.name, decl.pos, "global", False)

@@ -1,0 +1,84 @@
+/* armbench IEC 61131-3 runtime for C emitted from ST: arithmetic as MatIEC/OpenPLC does it,
+ * faults (division by zero, bounds, watchdog) as a longjmp back to the scan entry with the
+ * ST position, never a signal. Written for this project; included once per generated unit. */
+#ifndef ARMBENCH_IEC_RUNTIME_H
+#define ARMBENCH_IEC_RUNTIME_H
+#include <stdint.h>
+#include <string.h>
+#include <math.h>
+#include <setjmp.h>
+#include <time.h>
+
+static jmp_buf plc__jmp;
+static const char *plc__fault_pos = "";
+static const char *plc__fault_msg = "";
+static int64_t plc__now_ns = 0;          /* the scan's time, set by the soft PLC */
+static int64_t plc__wd_limit_ns = 1000000000; /* watchdog budget of one scan */
+static int64_t plc__wd_start_ns = 0;
+static uint32_t plc__wd_count = 0;
+
+const char *plc_fault_pos(void) { return plc__fault_pos; }
+const char *plc_fault_msg(void) { return plc__fault_msg; }
+void plc_set_time(int64_t ns) { plc__now_ns = ns; }
+void plc_set_watchdog(int64_t ns) { plc__wd_limit_ns = ns; }
+
+static __attribute__((noreturn, noinline, cold)) void plc__fault(const char *pos, const char *msg) {
+    plc__fault_pos = pos;
+    plc__fault_msg = msg;
+    longjmp(plc__jmp, 1);
+}
+
+#ifdef ARMBENCH_NO_WATCHDOG
+#define PLC__WD(pos) ((void)0)
+static void plc__wd_begin(void) {}
+#else
+static int64_t plc__mono_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000LL + ts.tv_nsec;
+}
+static void plc__wd_begin(void) { plc__wd_start_ns = plc__mono_ns(); plc__wd_count = 0; }
+static __attribute__((noinline, cold)) void plc__wd_check(const char *pos) {
+    if (plc__mono_ns() - plc__wd_start_ns > plc__wd_limit_ns)
+        plc__fault(pos, "watchdog: the scan ran past its time budget (endless loop?)");
+}
+#define PLC__WD(pos) do { if (__builtin_expect((++plc__wd_count & 0xFFFFu) == 0u, 0)) plc__wd_check(pos); } while (0)
+#endif
+
+static inline int32_t plc__idx(int64_t i, int64_t lo, int64_t hi, const char *pos) {
+    if (__builtin_expect(i < lo || i > hi, 0)) plc__fault(pos, "array index out of bounds");
+    return (int32_t)(i - lo);
+}
+static inline int64_t plc__div_s(int64_t a, int64_t b, const char *pos) {
+    if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
+    if (b == -1) return (int64_t)(0 - (uint64_t)a);  /* INT64_MIN / -1 wraps */
+    return a / b;
+}
+static inline uint64_t plc__div_u(uint64_t a, uint64_t b, const char *pos) {
+    if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
+    return a / b;
+}
+static inline int64_t plc__mod_s(int64_t a, int64_t b) {
+    if (b == 0 || b == -1) return 0;  /* MatIEC: x MOD 0 = 0 */
+    return a % b;
+}
+static inline uint64_t plc__mod_u(uint64_t a, uint64_t b) { return b == 0 ? 0 : a % b; }
+static inline int64_t plc__r2i(double x) { return (int64_t)nearbyint(x); } /* half to even */
+static inline uint64_t plc__r2u(double x) { return x < 0.0 ? 0u : (uint64_t)(int64_t)nearbyint(x); }
+static inline uint64_t plc__shl(uint64_t v, int64_t n, int bits) {
+    return (n < 0 || n >= bits) ? 0u : (v << n);
+}
+static inline uint64_t plc__shr(uint64_t v, int64_t n, int bits) {
+    return (n < 0 || n >= bits) ? 0u : (v >> n);
+}
+static inline uint64_t plc__rol(uint64_t v, int64_t n, int bits) {
+    uint64_t mask = bits == 64 ? ~0ull : ((1ull << bits) - 1u);
+    n %= bits; v &= mask;
+    if (n == 0) return v;
+    return ((v << n) | (v >> (bits - n))) & mask;
+}
+static inline uint64_t plc__ror(uint64_t v, int64_t n, int bits) {
+    n %= bits;
+    return plc__rol(v, n == 0 ? 0 : bits - n, bits);
+}
+#endif

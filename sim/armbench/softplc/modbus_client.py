@@ -1,0 +1,152 @@
+"""A small typed Modbus TCP client for talking to the soft PLC or a real OpenPLC, with
+REAL/DINT/LREAL helpers in OpenPLC's word order.
+
+This is the only module of the package that imports pymodbus (DESIGN.md §2): its API moves
+between minor releases, so every use of it is kept here. Written against pymodbus 3.16.1
+(``device_id`` is the unit id keyword since 3.10).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from pymodbus.client import ModbusTcpClient
+from pymodbus.pdu import ModbusPDU
+
+from . import modbus_map as mm
+
+
+class ModbusError(Exception):
+    """The server answered with a Modbus exception response (``code`` 1, 2, 3, ...)."""
+
+    def __init__(self, function: int, code: int) -> None:
+        super().__init__(f"function {function}: Modbus exception {code}")
+        self.function = function
+        self.code = code
+
+
+class ModbusIoError(Exception):
+    """No usable answer: not connected, timeout, or a garbled response."""
+
+
+@dataclass
+class PlcClient:
+    """Synchronous client; use as a context manager or call :meth:`connect`/:meth:`close`."""
+
+    host: str = "127.0.0.1"
+    port: int = 5020
+    timeout_s: float = 3.0
+    device_id: int = 1
+    _client: ModbusTcpClient = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        # retries=0: a request that timed out may still have been executed; resending a write
+        # silently would hide that from the tests.
+        self._client = ModbusTcpClient(
+            self.host, port=self.port, timeout=self.timeout_s, retries=0
+        )
+
+    # pymodbus 3.16 leaves ModbusTcpClient.connect/close unannotated.
+    def connect(self) -> None:
+        if not self._client.connect():  # type: ignore[no-untyped-call]
+            raise ModbusIoError(f"cannot connect to {self.host}:{self.port}")
+
+    def close(self) -> None:
+        self._client.close()  # type: ignore[no-untyped-call]
+
+    def __enter__(self) -> PlcClient:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _check(self, response: ModbusPDU, function: int) -> ModbusPDU:
+        if response.isError():
+            raise ModbusError(function, response.exception_code)
+        return response
+
+    # -- raw tables ------------------------------------------------------------------------
+
+    def read_coils(self, address: int, count: int = 1) -> list[bool]:
+        r = self._client.read_coils(address, count=count, device_id=self.device_id)
+        # pymodbus pads bits to a whole byte; the caller asked for exactly `count`.
+        return list(self._check(r, 1).bits[:count])
+
+    def read_discrete_inputs(self, address: int, count: int = 1) -> list[bool]:
+        r = self._client.read_discrete_inputs(address, count=count, device_id=self.device_id)
+        return list(self._check(r, 2).bits[:count])
+
+    def read_holding_registers(self, address: int, count: int = 1) -> list[int]:
+        r = self._client.read_holding_registers(address, count=count, device_id=self.device_id)
+        return list(self._check(r, 3).registers)
+
+    def read_input_registers(self, address: int, count: int = 1) -> list[int]:
+        r = self._client.read_input_registers(address, count=count, device_id=self.device_id)
+        return list(self._check(r, 4).registers)
+
+    def write_coil(self, address: int, value: bool) -> None:
+        self._check(self._client.write_coil(address, value, device_id=self.device_id), 5)
+
+    def write_register(self, address: int, value: int) -> None:
+        self._check(self._client.write_register(address, value, device_id=self.device_id), 6)
+
+    def write_coils(self, address: int, values: Sequence[bool]) -> None:
+        r = self._client.write_coils(address, list(values), device_id=self.device_id)
+        self._check(r, 15)
+
+    def write_registers(self, address: int, values: Sequence[int]) -> None:
+        r = self._client.write_registers(address, list(values), device_id=self.device_id)
+        self._check(r, 16)
+
+    # -- located variables -----------------------------------------------------------------
+
+    def read_qx(self, byte: int, bit: int) -> bool:
+        return self.read_coils(mm.bit_address(byte, bit))[0]
+
+    def write_qx(self, byte: int, bit: int, value: bool) -> None:
+        self.write_coil(mm.bit_address(byte, bit), value)
+
+    def read_ix(self, byte: int, bit: int) -> bool:
+        return self.read_discrete_inputs(mm.bit_address(byte, bit))[0]
+
+    def read_int(self, address: int) -> int:
+        """A signed 16-bit register (INT at %QW/%MW/%IW)."""
+        return mm.word_to_int(self.read_holding_registers(address)[0])
+
+    def write_int(self, address: int, value: int) -> None:
+        self.write_register(address, mm.int_to_word(value))
+
+    # The wide helpers take the %MD/%ML index, not a register address, and always move whole
+    # values with one request: function 16 is atomic between scans, two 06 writes are not.
+
+    def read_real(self, md_index: int) -> float:
+        return mm.words_to_real(self.read_holding_registers(mm.md_address(md_index), 2))
+
+    def write_real(self, md_index: int, value: float) -> None:
+        self.write_registers(mm.md_address(md_index), mm.real_to_words(value))
+
+    def read_dint(self, md_index: int) -> int:
+        return mm.words_to_dint(self.read_holding_registers(mm.md_address(md_index), 2))
+
+    def write_dint(self, md_index: int, value: int) -> None:
+        self.write_registers(mm.md_address(md_index), mm.dint_to_words(value))
+
+    def read_udint(self, md_index: int) -> int:
+        return mm.words_to_udint(self.read_holding_registers(mm.md_address(md_index), 2))
+
+    def write_udint(self, md_index: int, value: int) -> None:
+        self.write_registers(mm.md_address(md_index), mm.udint_to_words(value))
+
+    def read_lreal(self, ml_index: int) -> float:
+        return mm.words_to_lreal(self.read_holding_registers(mm.ml_address(ml_index), 4))
+
+    def write_lreal(self, ml_index: int, value: float) -> None:
+        self.write_registers(mm.ml_address(ml_index), mm.lreal_to_words(value))
+
+    def read_lint(self, ml_index: int) -> int:
+        return mm.words_to_lint(self.read_holding_registers(mm.ml_address(ml_index), 4))
+
+    def write_lint(self, ml_index: int, value: int) -> None:
+        self.write_registers(mm.ml_address(ml_index), mm.lint_to_words(value))

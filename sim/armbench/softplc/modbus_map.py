@@ -1,0 +1,120 @@
+"""OpenPLC v3's Modbus address map and word order (DESIGN.md §5.3), shared by the server and
+the client so both sides agree by construction.
+
+Holding registers: 0..1023 %QW, 1024..2047 %MW, 2048..4095 %MD (two registers each),
+4096..8191 %ML (four each). 32/64-bit values travel as their raw bit pattern, most significant
+word first, each word big-endian: i.e. the big-endian encoding of the whole value.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Final
+
+COIL_COUNT: Final = 8192
+DISCRETE_INPUT_COUNT: Final = 8192
+INPUT_REGISTER_COUNT: Final = 1024
+HOLDING_REGISTER_COUNT: Final = 8192
+
+QW_BASE: Final = 0
+MW_BASE: Final = 1024
+MD_BASE: Final = 2048
+ML_BASE: Final = 4096
+
+# Modbus exception codes used by the server.
+ILLEGAL_FUNCTION: Final = 1
+ILLEGAL_DATA_ADDRESS: Final = 2
+ILLEGAL_DATA_VALUE: Final = 3
+
+
+def bit_address(byte: int, bit: int) -> int:
+    """Coil / discrete-input address of ``%QXbyte.bit`` / ``%IXbyte.bit``."""
+    if not 0 <= bit < 8:
+        raise ValueError(f"bit index {bit} is not in 0..7")
+    return 8 * byte + bit
+
+
+def qw_address(n: int) -> int:
+    """Holding register of ``%QWn``."""
+    return QW_BASE + n
+
+
+def mw_address(n: int) -> int:
+    """Holding register of ``%MWn``."""
+    return MW_BASE + n
+
+
+def md_address(n: int) -> int:
+    """First (most significant) holding register of ``%MDn``."""
+    return MD_BASE + 2 * n
+
+
+def ml_address(n: int) -> int:
+    """First (most significant) holding register of ``%MLn``."""
+    return ML_BASE + 4 * n
+
+
+_REAL = struct.Struct(">f")
+_LREAL = struct.Struct(">d")
+_DINT = struct.Struct(">i")
+_UDINT = struct.Struct(">I")
+_LINT = struct.Struct(">q")
+_WORDS2 = struct.Struct(">2H")
+_WORDS4 = struct.Struct(">4H")
+
+
+def real_to_words(value: float) -> tuple[int, int]:
+    """REAL (float32) as the two registers OpenPLC serves, MSW first."""
+    return _WORDS2.unpack(_REAL.pack(value))
+
+
+def words_to_real(words: tuple[int, int] | list[int]) -> float:
+    result: float = _REAL.unpack(_WORDS2.pack(*words))[0]
+    return result
+
+
+def lreal_to_words(value: float) -> tuple[int, int, int, int]:
+    return _WORDS4.unpack(_LREAL.pack(value))
+
+
+def words_to_lreal(words: tuple[int, int, int, int] | list[int]) -> float:
+    result: float = _LREAL.unpack(_WORDS4.pack(*words))[0]
+    return result
+
+
+def dint_to_words(value: int) -> tuple[int, int]:
+    return _WORDS2.unpack(_DINT.pack(value))
+
+
+def words_to_dint(words: tuple[int, int] | list[int]) -> int:
+    result: int = _DINT.unpack(_WORDS2.pack(*words))[0]
+    return result
+
+
+def udint_to_words(value: int) -> tuple[int, int]:
+    return _WORDS2.unpack(_UDINT.pack(value))
+
+
+def words_to_udint(words: tuple[int, int] | list[int]) -> int:
+    result: int = _UDINT.unpack(_WORDS2.pack(*words))[0]
+    return result
+
+
+def lint_to_words(value: int) -> tuple[int, int, int, int]:
+    return _WORDS4.unpack(_LINT.pack(value))
+
+
+def words_to_lint(words: tuple[int, int, int, int] | list[int]) -> int:
+    result: int = _LINT.unpack(_WORDS4.pack(*words))[0]
+    return result
+
+
+def int_to_word(value: int) -> int:
+    """INT (signed 16-bit) as its two's-complement register value (−2 → 65534)."""
+    if not -0x8000 <= value <= 0x7FFF:
+        raise ValueError(f"{value} does not fit in an INT")
+    return value & 0xFFFF
+
+
+def word_to_int(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word

@@ -1,0 +1,1 @@
+"""Tests of the plant models (PCA9685, MG996R) and the OpenPLC PSM driver."""

@@ -1,0 +1,40 @@
+"""Fixtures for the soft PLC tests: an image, a server on a free port, a pymodbus client."""
+
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+try:
+    import armbench.softplc  # noqa: F401
+except ImportError:  # checkout without `pip install -e .`
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
+
+from armbench.softplc import ModbusServer, ProcessImage
+from armbench.softplc.modbus_client import PlcClient
+
+
+@pytest.fixture
+def image() -> ProcessImage:
+    return ProcessImage.allocate()
+
+
+@pytest.fixture
+def scan_lock() -> threading.Lock:
+    return threading.Lock()
+
+
+@pytest.fixture
+def server(image: ProcessImage, scan_lock: threading.Lock) -> Iterator[ModbusServer]:
+    with ModbusServer(image, scan_lock, port=0) as srv:
+        yield srv
+
+
+@pytest.fixture
+def client(server: ModbusServer) -> Iterator[PlcClient]:
+    with PlcClient(port=server.port, timeout_s=5.0) as c:
+        yield c
