@@ -1,4 +1,4 @@
-"""The ST compiler: parse -> lower -> check (resolve + portability rules) -> emit C -> build -> ffi."""
+"""The ST compiler: parse -> lower -> check (resolve, rules) -> emit C -> build -> ffi."""
 
 from __future__ import annotations
 

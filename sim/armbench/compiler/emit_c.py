@@ -15,8 +15,17 @@ from dataclasses import dataclass, field
 from . import ast as A
 from .stdlib import STD_FB_BODIES, STD_FBS
 from .symbols import CheckedProgram, PouSym, VarSym
-from .types import (BOOL, ELEMENTARY, ArrayType, ElemType, EnumType, LiteralType, PouType,
-                    StructType, Type)
+from .types import (
+    BOOL,
+    ELEMENTARY,
+    ArrayType,
+    ElemType,
+    EnumType,
+    LiteralType,
+    PouType,
+    StructType,
+    Type,
+)
 
 IMAGE_DECL = """typedef struct {
     uint8_t  ix[8192];
@@ -67,6 +76,7 @@ class Emitter:
         self.protos: list[str] = []
         self.cur: PouSym | None = None
         self.loc = _Local()
+        self.unmapped = 0
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -81,10 +91,11 @@ class Emitter:
             return self.type_names[key]
         if isinstance(t, ArrayType):
             elem = self.ctype(t.element)
-            name = ("A_" + t.name.upper()) if not t.name.startswith("ARRAY[") else \
-                f"ARR_{elem}_{t.shape_key()}"
+            # one C type per shape and element: ST assigns between a named array type and an
+            # anonymous array of the same shape
+            name = f"ARR_{elem}_{t.shape_key()}"
             # same anonymous shape -> same C type
-            for k, v in self.type_names.items():
+            for v in self.type_names.values():
                 if v == name:
                     self.type_names[key] = name
                     return name
@@ -112,7 +123,8 @@ class Emitter:
             cname = self.ctype(t)
             body = "".join(f"    {ELEMENTARY[f.type].ctype} {f.name};\n" for f in fields)
             self.typedefs.append(f"typedef struct {{\n{body}}} {cname};\n")
-            self.code.append(f"static void {cname}_init({cname} *s) {{ memset(s, 0, sizeof *s); }}\n"
+            self.code.append(f"static void {cname}_init({cname} *s) "
+                             "{ memset(s, 0, sizeof *s); }\n"
                              f"static void {cname}_body({cname} *s) {{{STD_FB_BODIES[name]}\n}}\n")
         for t in self.p.types.values():
             if isinstance(t, StructType | ArrayType):
@@ -262,15 +274,18 @@ class Emitter:
         self.cur = None
 
     def address_ptr(self, v: VarSym) -> str:
-        addr = v.address or ""
-        area, size = addr[1], addr[2]
-        nums = [int(x) for x in addr[3:].split(".")]
+        area, size, nums = split_address(v.address or "")
         ct = self.ctype(v.type)
-        if size == "X":
-            arr = "ix" if area == "I" else "qx"
-            return f"({ct} *)&plc_image.{arr}[{nums[0] * 8 + nums[1]}]"
+        if size == "X" and area in "IQ":
+            bits = "ix" if area == "I" else "qx"
+            return f"({ct} *)&plc_image.{bits}[{nums[0] * 8 + nums[1]}]"
         arr = {("I", "W"): "iw", ("Q", "W"): "qw", ("M", "W"): "mw", ("M", "D"): "md",
-               ("M", "L"): "ml"}[(area, size)]
+               ("M", "L"): "ml"}.get((area, size))
+        if arr is None:
+            # valid in OpenPLC but outside its Modbus map: plain storage of its own
+            self.unmapped += 1
+            self.init_fns.append(f"static {ct} plc__unmapped_{self.unmapped};\n")
+            return f"&plc__unmapped_{self.unmapped}"
         return f"({ct} *)&plc_image.{arr}[{nums[0]}]"
 
     def config_code(self) -> None:
@@ -342,7 +357,8 @@ class Emitter:
                         conds.append(f"({tmp} >= {lo} && {tmp} <= {self.expr(lab.high, want=st)})")
                 kw = "if" if first else "} else if"
                 first = False
-                out += f"{ind}{kw} ({' || '.join(conds) or '0'}) {{\n{self.block(cl.body, depth + 1)}"
+                cond = " || ".join(conds) or "0"
+                out += f"{ind}{kw} ({cond}) {{\n{self.block(cl.body, depth + 1)}"
             if s.orelse is not None:
                 out += (f"{ind}}} else {{\n" if not first else f"{ind}{{\n") + \
                     self.block(s.orelse, depth + 1)
@@ -356,14 +372,14 @@ class Emitter:
             ct = self.ctype(vt)
             step = self.expr(s.step, want=vt) if s.step is not None else "1"
             end = self.expr(s.end, want=vt)
-            st = self.loc.tmp()
+            stp = self.loc.tmp()
             return (f"{ind}for ({v} = {self.expr(s.start, want=vt)}; ; ) {{\n"
-                    f"{ind}    {ct} {st} = {step};\n"
-                    f"{ind}    if ({st} >= 0 ? !({v} <= {end}) : !({v} >= {end})) break;\n"
+                    f"{ind}    {ct} {stp} = {step};\n"
+                    f"{ind}    if ({stp} >= 0 ? !({v} <= {end}) : !({v} >= {end})) break;\n"
                     f"{ind}    PLC__WD({self.pos(s)});\n"
                     f"{ind}    do {{\n{self.block(s.body, depth + 2)}{ind}    }} while (0);\n"
                     f"{ind}    if (plc__brk_) {{ plc__brk_ = 0; break; }}\n"
-                    f"{ind}    {v} = ({ct})({v} + {st});\n{ind}}}\n")
+                    f"{ind}    {v} = ({ct})({v} + {stp});\n{ind}}}\n")
         if isinstance(s, A.While):
             return (f"{ind}while ({self.expr(s.cond, want=BOOL)}) {{\n"
                     f"{ind}    PLC__WD({self.pos(s)});\n"
@@ -526,7 +542,7 @@ class Emitter:
         op = e.op
         lt = self.p.expr_types[e.left]
         rt = self.p.expr_types[e.right]
-        operand_t = lt if not isinstance(lt, LiteralType) else rt
+        operand_t: Type | None = lt if not isinstance(lt, LiteralType) else rt
         if isinstance(operand_t, LiteralType):
             operand_t = t if op not in ("=", "<>", "<", "<=", ">", ">=") else operand_t
         a = self.expr(e.left, want=operand_t)
@@ -653,6 +669,16 @@ class Emitter:
                           ELEMENTARY["DINT"])
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def split_address(addr: str) -> tuple[str, str, list[int]]:
+    """'%QX2.5' -> ('Q', 'X', [2, 5]); a missing size prefix means X (a bit)."""
+    area = addr[1:2]
+    rest = addr[2:]
+    size = "X"
+    if rest[:1].isalpha():
+        size, rest = rest[0], rest[1:]
+    return area, size, [int(x) for x in rest.split(".")]
 
 
 def emit(prog: CheckedProgram) -> CUnit:

@@ -141,7 +141,8 @@ class Instance:
         object.__setattr__(self, "_run", getattr(module.lib, f"{cname}_run"))
 
     def _var(self, name: str) -> VarSym:
-        v = self._sym.vars.get(name.upper())
+        sym: PouSym = self._sym
+        v = sym.vars.get(name.upper())
         if v is None or v.kind == A.VAR_EXTERNAL:
             names = ", ".join(x.name for x in self._sym.vars.values())
             raise AttributeError(f"{self._sym.name} has no variable {name!r} (it has: {names})")
@@ -161,7 +162,9 @@ class Instance:
             v = self._var(name)
             what = f"{self._sym.name}.{v.name}"
             if v.kind == A.VAR_IN_OUT:
-                store = self._m.ffi.new(f"{self._m.ffi.getctype(self._m.ffi.typeof(getattr(self._c, v.key)).item)} *")
+                ffi = self._m.ffi
+                item = ffi.typeof(getattr(self._c, v.key)).item
+                store = ffi.new(f"{ffi.getctype(item)} *")
                 if isinstance(v.type, ElemType | EnumType):
                     store[0] = self._m.values.scalar(v.type, value, what)
                 else:

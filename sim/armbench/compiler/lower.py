@@ -12,6 +12,7 @@ import tree_sitter as ts
 from . import ast as A
 from .diagnostics import Diagnostics
 from .parse import ParsedFile
+from .source import SourcePos
 
 _TIME_UNITS = {"D": 86_400_000_000_000, "H": 3_600_000_000_000, "M": 60_000_000_000,
                "S": 1_000_000_000, "MS": 1_000_000, "US": 1_000, "NS": 1}
@@ -61,7 +62,7 @@ class Lowerer:
         self.diags = diags
 
     # ------------------------------------------------------------ helpers
-    def pos(self, node: ts.Node) -> A.SourcePos:
+    def pos(self, node: ts.Node) -> SourcePos:
         return self.pf.pos(node)
 
     def text(self, node: ts.Node) -> str:
@@ -239,7 +240,7 @@ class Lowerer:
                 self.unsupported(c, "methods and properties (object-oriented extensions)")
         body = self.stmts(self.fields(node, "body"))
         end = node.end_point
-        end_pos = A.SourcePos(self.pf.path, end.row + 1, end.column + 1)
+        end_pos = SourcePos(self.pf.path, end.row + 1, end.column + 1)
         return A.Pou(self.pos(node), kind, name, self.type_ref(rt) if rt else None, blocks, body,
                      end_pos)
 

@@ -8,9 +8,12 @@ expressions are folded and range-checked, calls are checked against the callee's
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 from . import ast as A
 from .diagnostics import Diagnostics
+from .emit_c import split_address
+from .source import SourcePos
 from .stdlib import CONVERSIONS, STD_FBS, STD_FUNCS, StdFunc
 from .symbols import (
     CallTarget,
@@ -59,6 +62,8 @@ class Checker:
         self.call_graph: dict[str, set[str]] = {}
         self.cur: PouSym | None = None
         self.loop_depth = 0
+        self.global_consts: dict[str, int] = {}
+        self.in_array_init = False
 
     # ================================================================ declarations
     def run(self) -> CheckedProgram:
@@ -66,24 +71,32 @@ class Checker:
             sym = PouSym(name, "FUNCTION_BLOCK", None, builtin=True)
             for f in fields:
                 sym.vars[f.name] = VarSym(f.name, ELEMENTARY[f.type], f.kind, False,
-                                          A.SourcePos("<builtin>", 0, 0))
+                                          SourcePos("<builtin>", 0, 0))
             self.pous[name] = sym
             self.types[name] = PouType(name, "FUNCTION_BLOCK", sym)
         for u in self.units:
             for td in u.types:
                 self._declare(td.name, td.pos, self.type_decls, td)
             for p in u.pous:
-                if self._declare(p.name, p.pos, self.pous, PouSym(p.name, p.kind, p)):
-                    if p.kind != "FUNCTION":
-                        self.types[p.name.upper()] = PouType(p.name, p.kind, self.pous[p.name.upper()])
+                if self._declare(p.name, p.pos, self.pous, PouSym(p.name, p.kind, p)) and \
+                        p.kind != "FUNCTION":
+                    self.types[p.name.upper()] = PouType(p.name, p.kind,
+                                                         self.pous[p.name.upper()])
             for g in u.stray_globals:
                 self.d.error(g.pos, "E0206", "VAR_GLOBAL outside a CONFIGURATION is not "
                              "portable (MatIEC rejects a CODESYS-style GVL)")
+        for u in self.units:
+            for c in u.configs:
+                for blk in c.globals + [g for r in c.resources for g in r.globals]:
+                    for decl in blk.decls:
+                        if blk.constant and isinstance(decl.init, A.Literal) and \
+                                decl.init.kind == "int":
+                            self.global_consts[decl.name.upper()] = int(decl.init.value)
         for key, td in self.type_decls.items():
             if key not in self.types:
                 self.types[key] = self.named_type(td, set())
-        for p in self.user_pous():
-            self.declare_pou_vars(p)
+        for sym in self.user_pous():
+            self.declare_pou_vars(sym)
         config = None
         for u in self.units:
             for c in u.configs:
@@ -91,8 +104,14 @@ class Checker:
                     self.d.error(c.pos, "E0602", "more than one CONFIGURATION")
                     continue
                 config = self.configuration(c)
-        for p in self.user_pous():
-            self.check_body(p)
+        progs = [p for p in self.user_pous() if p.kind == "PROGRAM"]
+        if progs and config is None:
+            node = progs[0].node
+            assert node is not None
+            self.d.error(node.pos, "E0602", f"PROGRAM {progs[0].name} has no CONFIGURATION: "
+                         "OpenPLC's build needs Config0 with Res0 and a periodic TASK")
+        for sym in self.user_pous():
+            self.check_body(sym)
         self.check_recursion()
         return CheckedProgram(self.types, {k: v for k, v in self.ordered_pous()},
                               self.expr_types, self.names, self.calls, config, self.units)
@@ -100,7 +119,7 @@ class Checker:
     def user_pous(self) -> list[PouSym]:
         return [p for p in self.pous.values() if not p.builtin]
 
-    def _declare(self, name: str, pos: A.SourcePos, table: dict[str, object], value: object) -> bool:
+    def _declare(self, name: str, pos: SourcePos, table: dict[str, Any], value: object) -> bool:
         key = name.upper()
         if key in self.pous or key in self.type_decls or key in ELEMENTARY:
             self.d.error(pos, "E0201", f"'{name}' is already declared (names are "
@@ -200,8 +219,11 @@ class Checker:
         if isinstance(e, A.Unary) and e.op == "-" and isinstance(e.operand, A.Literal) and \
                 e.operand.kind == "int":
             return -int(e.operand.value)
+        if isinstance(e, A.Name) and e.name.upper() in self.global_consts:
+            return self.global_consts[e.name.upper()]
         self.d.error(e.pos, "E0500", "array bounds and enum values must be integer literals "
-                     "(MatIEC rejects constant names and expressions here)")
+                     "or CONFIGURATION constants (MatIEC rejects POU constants and "
+                     "expressions here)")
         return None
 
     def declare_pou_vars(self, p: PouSym) -> None:
@@ -264,25 +286,22 @@ class Checker:
             self.d.error(decl.pos, "E0600", f"'{decl.name}' at {addr}: only elementary "
                          "variables can be located")
             return
-        area, size = addr[1:2], addr[2:3]
+        try:
+            area, size, nums = split_address(addr)
+        except ValueError:
+            area, size, nums = "", "", []
         size_bits = {"X": 1, "W": 16, "D": 32, "L": 64, "B": 8}.get(size)
         ok_bits = t.bits if t.kind != "bool" else 1
-        if size_bits is None or area not in "IQM" or not _address_numbers(addr, size):
-            self.d.error(decl.pos, "E0600", f"'{addr}' is not a located address this bench "
-                         "maps (use %IX, %QX, %IW, %QW, %MW, %MD, %ML)")
+        if size_bits is None or area not in ("I", "Q", "M") or not nums or \
+                len(nums) != (2 if size == "X" else 1):
+            self.d.error(decl.pos, "E0600", f"'{addr}' is not a valid location (e.g. %IX0.1, "
+                         "%QW3, %MD0)")
         elif size_bits != ok_bits:
             self.d.error(decl.pos, "E0600", f"{t.name} '{decl.name}' does not fit {addr}: the "
                          f"location holds {size_bits} bits, the type {ok_bits}")
-        elif size == "B" or (area == "M" and size == "X") or (area in "IQ" and size in "DL"):
-            self.d.error(decl.pos, "E0600", f"{addr} is not reachable over OpenPLC's Modbus "
-                         "map (use %IX, %QX, %IW, %QW, %MW, %MD, %ML)")
-        else:
-            nums = _address_numbers(addr, size)
-            assert nums is not None
-            limit = 1024
-            if nums[0] >= limit or (len(nums) > 1 and nums[1] > 7):
-                self.d.error(decl.pos, "E0600", f"{addr} is outside OpenPLC's buffers "
-                             "(index 0..1023, bit 0..7)")
+        elif nums[0] >= 1024 or (len(nums) > 1 and nums[1] > 7):
+            self.d.error(decl.pos, "E0600", f"{addr} is outside OpenPLC's buffers "
+                         "(index 0..1023, bit 0..7)")
 
     # ================================================================ configuration
     def configuration(self, c: A.Configuration) -> ConfigModel | None:
@@ -377,6 +396,11 @@ class Checker:
                 if n is not None:
                     reps = self.literal_bound(n) or 0
                 count += reps
+                if isinstance(v, A.Expr) and isinstance(t.element, ElemType) and \
+                        t.element.is_real and self.expr(v, t.element) is INT_LIT:
+                    # MatIEC tolerates integers in an array initialiser of REALs
+                    self.settle(v, t.element)
+                    continue
                 self.check_init(v, t.element)
             if count > t.size:
                 self.d.error(init.pos, "E0503", f"{count} initial values for {t.size} "
@@ -405,6 +429,9 @@ class Checker:
     def is_constant(self, e: A.Expr) -> bool:
         if isinstance(e, A.Literal):
             return True
+        if isinstance(e, A.Name):
+            ref = self.names.get(e)
+            return ref is not None and ref.kind == "enum"
         if isinstance(e, A.Unary):
             return self.is_constant(e.operand)
         if isinstance(e, A.Binary):
@@ -1130,14 +1157,6 @@ class Checker:
         for p in self.user_pous():
             visit(p, set())
         return out
-
-
-def _address_numbers(addr: str, size: str) -> list[int] | None:
-    body = addr[3:] if size in "XWDLB" and len(addr) > 3 else addr[2:]
-    try:
-        return [int(x) for x in body.split(".")]
-    except ValueError:
-        return None
 
 
 def check(units: list[A.SourceUnit], diags: Diagnostics) -> CheckedProgram:

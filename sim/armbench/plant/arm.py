@@ -134,7 +134,9 @@ def reach_limits(geometry: ArmGeometry = DEFAULT_GEOMETRY) -> tuple[float, float
     return abs(geometry.a3 - geometry.a4), geometry.a3 + geometry.a4
 
 
-def shoulder_distance(x: float, y: float, z: float, geometry: ArmGeometry = DEFAULT_GEOMETRY) -> float:
+def shoulder_distance(
+    x: float, y: float, z: float, geometry: ArmGeometry = DEFAULT_GEOMETRY
+) -> float:
     """Distance Cp (mm) of the target from the shoulder axis in the arm's plane."""
     return math.hypot(math.hypot(x, y) - geometry.a2, z - geometry.a1)
 

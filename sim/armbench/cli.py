@@ -1,0 +1,175 @@
+"""armbench command line: check, build, run, serve.
+
+Exit codes: 0 ok, 1 diagnostics or fault, 2 usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import NoReturn
+
+from .compiler import CompileFailed, check_files
+from .compiler.build import BuildError, build
+from .compiler.driver import emit_files, expand
+from .faults import PlcFault
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # argparse exits 2 too; one message style
+        self.print_usage(sys.stderr)
+        print(f"armbench: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_USAGE)
+
+
+def _files(paths: Sequence[str]) -> list[Path]:
+    files = expand(paths)
+    missing = [str(f) for f in files if not f.exists()]
+    if missing:
+        print(f"armbench: error: no such file: {', '.join(missing)}", file=sys.stderr)
+        raise SystemExit(EXIT_USAGE)
+    if not files:
+        print("armbench: error: no .st files given", file=sys.stderr)
+        raise SystemExit(EXIT_USAGE)
+    return files
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    diags = check_files(_files(args.files))
+    for d in diags:
+        print(d.render())
+    if diags:
+        print(f"{len(diags)} error(s)", file=sys.stderr)
+        return EXIT_FAIL
+    return EXIT_OK
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    _, unit = emit_files(_files(args.files))
+    lib = build(unit)
+    dt = time.perf_counter() - t0
+    print(f"{lib.path} ({'cached' if lib.cached else 'built'} in {dt:.3f} s; C: {lib.c_path})")
+    return EXIT_OK
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .softplc.loader import load_program
+    from .softplc.scan import PlcState, SoftPlc
+
+    prog = load_program(_files(args.files))
+    plc = SoftPlc(prog)
+    plc.run()
+    base = min(t.interval_ns for t in prog.tasks)
+    now = 0
+    scans = 0
+    while scans < args.cycles and plc.state is PlcState.RUNNING:
+        plc.step(now)
+        now += base
+        scans += 1
+    status = 0
+    if plc.state is PlcState.FAULT and plc.fault is not None:
+        print(f"{plc.fault.location}: PLC fault: {plc.fault.message}", file=sys.stderr)
+        status = EXIT_FAIL
+    if args.dump:
+        dump = {name: prog.instance_vars(name) for name in prog.instance_names()}
+        print(json.dumps(dump, indent=2, default=_json_default))
+    else:
+        print(f"ran {scans} cycle(s) of {base / 1e6:g} ms; state {plc.state.name}")
+    return status
+
+
+def _json_default(o: object) -> object:
+    if isinstance(o, float):
+        return repr(o)
+    raise TypeError(f"not JSON-able: {o!r}")
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from .softplc.loader import load_program
+    from .softplc.modbus_server import ModbusServer
+    from .softplc.scan import SoftPlc
+
+    prog = load_program(_files(args.files))
+    plc = SoftPlc(prog)
+    server = ModbusServer(prog.image, plc.lock, host=args.host, port=args.port)
+    try:
+        server.start()
+    except OSError as exc:
+        print(f"armbench: error: cannot listen on {args.host}:{args.port}: {exc.strerror}",
+              file=sys.stderr)
+        return EXIT_FAIL
+    plc.run()
+    plc.start()
+    print(f"serving Modbus TCP on {args.host}:{server.port}; tasks: "
+          + ", ".join(f"{t.name} every {t.interval_ns / 1e6:g} ms" for t in prog.tasks),
+          flush=True)
+    stop = threading.Event()
+    try:
+        while not stop.wait(0.5 if args.duration is None else min(0.5, args.duration)):
+            if args.duration is not None:
+                args.duration -= 0.5
+                if args.duration <= 0:
+                    break
+            if plc.fault is not None:
+                print(f"{plc.fault.location}: PLC fault: {plc.fault.message} (Modbus keeps "
+                      "answering)", file=sys.stderr, flush=True)
+                stop.wait(3600 * 24 * 365) if args.duration is None else None
+                break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        plc.stop()
+        server.stop()
+    return EXIT_FAIL if plc.fault is not None else EXIT_OK
+
+
+def make_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="armbench", description="ST compiler, soft PLC and test bench for the "
+                "arm-kinematics library")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    c = sub.add_parser("check", help="portability and type check (exit 1 on error)")
+    c.add_argument("files", nargs="+", help=".st files or folders")
+    c.set_defaults(func=cmd_check)
+    b = sub.add_parser("build", help="compile to a cached shared library")
+    b.add_argument("files", nargs="+")
+    b.set_defaults(func=cmd_build)
+    r = sub.add_parser("run", help="run the CONFIGURATION headless")
+    r.add_argument("files", nargs="+")
+    r.add_argument("--cycles", type=int, default=1, help="scans of the fastest task")
+    r.add_argument("--dump", action="store_true", help="print program variables as JSON")
+    r.set_defaults(func=cmd_run)
+    s = sub.add_parser("serve", help="run in real time and serve Modbus TCP")
+    s.add_argument("files", nargs="+")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=5020)
+    s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    s.set_defaults(func=cmd_serve)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = make_parser().parse_args(argv)
+    try:
+        rc: int = args.func(args)
+        return rc
+    except CompileFailed as exc:
+        print(str(exc))
+        return EXIT_FAIL
+    except (BuildError, ValueError, KeyError) as exc:
+        print(f"armbench: error: {exc}", file=sys.stderr)
+        return EXIT_FAIL
+    except PlcFault as exc:
+        print(str(exc), file=sys.stderr)
+        return EXIT_FAIL
+
+
+if __name__ == "__main__":
+    sys.exit(main())
