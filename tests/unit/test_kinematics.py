@@ -193,7 +193,9 @@ def test_forward_kinematics_vs_numpy_oracle(st_module: Any) -> None:
         got = st_module.call(
             "ForwardKinematic_V1", Angles=angles(float(b), float(s), float(e)), Geometry=GEO
         )
-        worst = max(worst, float(np.linalg.norm([got["X"] - w[0], got["Y"] - w[1], got["Z"] - w[2]])))
+        worst = max(
+            worst, float(np.linalg.norm([got["X"] - w[0], got["Y"] - w[1], got["Z"] - w[2]]))
+        )
     print(f"\nFK vs numpy oracle: worst {worst:.4e} mm over {len(q)} random angle sets")
     assert worst <= FK_TOL_MM
 
@@ -245,8 +247,9 @@ def test_forward_kinematics_known_poses(st_module: Any) -> None:
 
 
 def test_forward_kinematics_tool_outputs(st_module: Any) -> None:
-    a = angles(30.0, 40.0, 100.0, GripperUpDown=25.0, Gripper=12.5, ElbowRotate=70.0,
-               GripperRotate=-10.0)
+    a = angles(
+        30.0, 40.0, 100.0, GripperUpDown=25.0, Gripper=12.5, ElbowRotate=70.0, GripperRotate=-10.0
+    )
     got = st_module.call("ForwardKinematic_V1", Angles=a, Geometry=GEO)
     pitch, eroll, groll = arm.tool_commands(30.0, 40.0, 100.0, 25.0, 70.0, -10.0)
     assert got["GripperUpDown"] == pytest.approx(pitch, abs=1e-4)
@@ -275,8 +278,15 @@ def test_round_trip_fk_of_ik(st_module: Any, elbow_up: bool) -> None:
     worst_mm = worst_tool = worst_vs_oracle = 0.0
     worst_at: tuple[float, ...] = ()
     for (x, y, z), (pitch, grip, eroll, groll) in zip(targets, tools, strict=True):
-        target = coords(float(x), float(y), float(z), GripperUpDown=float(pitch),
-                        Gripper=float(grip), ElbowRotate=float(eroll), GripperRotate=float(groll))
+        target = coords(
+            float(x),
+            float(y),
+            float(z),
+            GripperUpDown=float(pitch),
+            Gripper=float(grip),
+            ElbowRotate=float(eroll),
+            GripperRotate=float(groll),
+        )
         assert st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == NO_ERROR
         sol = st_module.call("InverseKinematik_V1", Target=target, Geometry=GEO, ElbowUp=elbow_up)
         assert all_finite(sol)
@@ -296,7 +306,9 @@ def test_round_trip_fk_of_ik(st_module: Any, elbow_up: bool) -> None:
         if arm.is_reachable(float(x), float(y), float(z), GEOMETRY, margin=1.0):
             ref = arm.inverse(float(x), float(y), float(z), GEOMETRY, elbow_up=elbow_up)
             got = (sol["Base"], sol["Shoulder"], sol["Elbow"])
-            worst_vs_oracle = max(worst_vs_oracle, *(angle_diff(g, r) for g, r in zip(got, ref)))
+            worst_vs_oracle = max(
+                worst_vs_oracle, *(angle_diff(g, r) for g, r in zip(got, ref, strict=True))
+            )
     label = "elbow up" if elbow_up else "elbow down"
     print(
         f"\nFK(IK(p)) {label}: worst {worst_mm:.4e} mm at {worst_at} over {len(targets)} points;"
@@ -310,8 +322,9 @@ def test_round_trip_fk_of_ik(st_module: Any, elbow_up: bool) -> None:
 
 def test_ik_tool_outputs_follow_document_002(st_module: Any) -> None:
     p = arm.forward(-40.0, 35.0, 110.0)
-    target = coords(*map(float, p), GripperUpDown=10.0, Gripper=33.0, ElbowRotate=5.0,
-                    GripperRotate=-15.0)
+    target = coords(
+        *map(float, p), GripperUpDown=10.0, Gripper=33.0, ElbowRotate=5.0, GripperRotate=-15.0
+    )
     sol = st_module.call("InverseKinematik_V1", Target=target, Geometry=GEO, ElbowUp=True)
     assert sol["Base"] == pytest.approx(-40.0, abs=1e-3)
     assert sol["Shoulder"] == pytest.approx(35.0, abs=1e-3)
@@ -341,7 +354,9 @@ BAD_TARGETS = [
 
 
 @pytest.mark.parametrize(("name", "target", "code"), BAD_TARGETS, ids=[b[0] for b in BAD_TARGETS])
-def test_ik_bad_targets_function(st_module: Any, name: str, target: dict[str, float], code: int) -> None:
+def test_ik_bad_targets_function(
+    st_module: Any, name: str, target: dict[str, float], code: int
+) -> None:
     assert st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == code
     for elbow_up in (True, False):
         sol = st_module.call("InverseKinematik_V1", Target=target, Geometry=GEO, ElbowUp=elbow_up)
@@ -431,4 +446,6 @@ def test_reachable_shell_edges(st_module: Any) -> None:
     # Beyond the tolerance: unreachable.
     for cp in (high + 0.01, low - 0.01):
         target = coords(GEOMETRY.a2 + cp, 0.0, GEOMETRY.a1)
-        assert st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == UNREACHABLE
+        assert (
+            st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == UNREACHABLE
+        )

@@ -94,8 +94,11 @@ def test_clamping_raises_flag(st_module: Any) -> None:
 def test_round_trip_angle_pulse_angle(st_module: Any) -> None:
     rng = np.random.default_rng(11)
     worst = 0.0
-    for c in (DEFAULT_CAL, cal(ZeroOffsetDeg=90.0, Direction=-1), cal(MinAngleDeg=-45.0,
-                                                                         MinPulseUs=1125.0)):
+    for c in (
+        DEFAULT_CAL,
+        cal(ZeroOffsetDeg=90.0, Direction=-1),
+        cal(MinAngleDeg=-45.0, MinPulseUs=1125.0),
+    ):
         lo = c["ZeroOffsetDeg"] + c["MinAngleDeg"]
         hi = c["ZeroOffsetDeg"] + c["MaxAngleDeg"]
         if c["Direction"] < 0:

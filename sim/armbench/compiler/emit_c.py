@@ -357,8 +357,8 @@ class Emitter:
                         conds.append(f"({tmp} >= {lo} && {tmp} <= {self.expr(lab.high, want=st)})")
                 kw = "if" if first else "} else if"
                 first = False
-                cond = " || ".join(conds) or "0"
-                out += f"{ind}{kw} ({cond}) {{\n{self.block(cl.body, depth + 1)}"
+                cond_c = " || ".join(conds) or "0"
+                out += f"{ind}{kw} ({cond_c}) {{\n{self.block(cl.body, depth + 1)}"
             if s.orelse is not None:
                 out += (f"{ind}}} else {{\n" if not first else f"{ind}{{\n") + \
                     self.block(s.orelse, depth + 1)

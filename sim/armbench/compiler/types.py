@@ -72,7 +72,7 @@ class LiteralType(Type):
 
     @property
     def is_real(self) -> bool:
-        return "REAL" in self.name
+        return self.name == "real literal"
 
 
 INT_LIT = LiteralType("integer literal")
