@@ -246,6 +246,20 @@ def render_types(st: StFile) -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
+def _summary(pou: Pou) -> str:
+    """The header's first sentence, without the leading ``Name --``."""
+    words: list[str] = []
+    for line in pou.header.splitlines():
+        if not line.strip():
+            break
+        words.append(line.strip())
+        if line.rstrip().endswith("."):
+            break
+    text = " ".join(words)
+    prefix = f"{pou.name} -- "
+    return text[len(prefix) :] if text.startswith(prefix) else text
+
+
 def render_all(st_paths: Sequence[Path]) -> dict[str, str]:
     """File name -> page text for every page of the reference."""
     pages: dict[str, str] = {}
@@ -260,7 +274,7 @@ def render_all(st_paths: Sequence[Path]) -> dict[str, str]:
         for pou in st.pous:
             pages[f"{pou.name}.md"] = render_pou(pou, st)
             kind = "FB" if pou.kind == "FUNCTION_BLOCK" else "FUNCTION"
-            summary = pou.header.split("\n", 1)[0]
+            summary = _summary(pou)
             index.append(f"- [{pou.name}]({pou.name}.md) ({kind}): {summary}")
         index.append("")
     pages["index.md"] = "\n".join(index).rstrip() + "\n"
