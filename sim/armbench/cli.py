@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -111,18 +110,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
     print(f"serving Modbus TCP on {args.host}:{server.port}; tasks: "
           + ", ".join(f"{t.name} every {t.interval_ns / 1e6:g} ms" for t in prog.tasks),
           flush=True)
-    stop = threading.Event()
+    deadline = None if args.duration is None else time.monotonic() + args.duration
+    reported = False
     try:
-        while not stop.wait(0.5 if args.duration is None else min(0.5, args.duration)):
-            if args.duration is not None:
-                args.duration -= 0.5
-                if args.duration <= 0:
-                    break
-            if plc.fault is not None:
-                print(f"{plc.fault.location}: PLC fault: {plc.fault.message} (Modbus keeps "
-                      "answering)", file=sys.stderr, flush=True)
-                stop.wait(3600 * 24 * 365) if args.duration is None else None
-                break
+        while deadline is None or time.monotonic() < deadline:
+            time.sleep(0.2)
+            if plc.fault is not None and not reported:
+                reported = True
+                print(f"{plc.fault.location}: PLC fault: {plc.fault.message} (outputs held; "
+                      "Modbus keeps answering)", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         pass
     finally:

@@ -320,6 +320,48 @@ def test_round_trip_fk_of_ik(st_module: Any, elbow_up: bool) -> None:
     assert worst_vs_oracle <= 0.01
 
 
+def test_round_trip_from_random_angles_incl_reaching_over_the_axis(st_module: Any) -> None:
+    """Every pose the arm can take (off the base axis) must be solvable, also those whose
+    tool point lies behind the base axis (only the back solution, Base + 180, reaches)."""
+    rng = np.random.default_rng(8)
+    q = np.column_stack(
+        [
+            rng.uniform(-180.0, 180.0, 4000),
+            rng.uniform(-180.0, 180.0, 4000),
+            rng.uniform(0.0, 360.0, 4000),
+        ]
+    )
+    # Poses with the tool within 40 mm of the base axis, where the front side often can't reach.
+    near_axis = []
+    for shoulder in np.arange(-90.0, 91.0, 2.5):
+        for elbow in np.arange(2.5, 360.0, 2.5):
+            p = arm.forward(0.0, float(shoulder), float(elbow))
+            if 0.5 < math.hypot(p[0], p[1]) < 40.0:
+                near_axis.append((float(rng.uniform(-180.0, 180.0)), float(shoulder), float(elbow)))
+    q = np.concatenate([q, np.array(near_axis)])
+    targets = arm.forward_batch(q, GEOMETRY)
+    worst = 0.0
+    back_used = 0
+    for (b, _s, e), (x, y, z) in zip(q, targets, strict=True):
+        target = coords(float(x), float(y), float(z))
+        if math.hypot(x, y) < 0.05:
+            continue
+        code = st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO)
+        assert code == NO_ERROR, (b, _s, e, target)
+        sol = st_module.call(
+            "InverseKinematik_V1", Target=target, Geometry=GEO, ElbowUp=bool(e < 180.0)
+        )
+        back_used += angle_diff(sol["Base"], math.degrees(math.atan2(y, x))) > 90.0
+        got = st_module.call("ForwardKinematic_V1", Angles=sol, Geometry=GEO)
+        worst = max(worst, math.dist((got["X"], got["Y"], got["Z"]), (x, y, z)))
+    print(
+        f"\nFK(IK(FK(q))) from {len(q)} random/near-axis poses: worst {worst:.4e} mm;"
+        f" {back_used} solved over the back"
+    )
+    assert back_used > 0
+    assert worst <= ROUND_TRIP_TOL_MM
+
+
 def test_ik_tool_outputs_follow_document_002(st_module: Any) -> None:
     p = arm.forward(-40.0, 35.0, 110.0)
     target = coords(
@@ -339,7 +381,7 @@ def test_ik_tool_outputs_follow_document_002(st_module: Any) -> None:
 BAD_TARGETS = [
     ("far", coords(400.0, 0.0, 100.0), UNREACHABLE),
     ("just beyond full stretch", coords(270.1, 0.0, 100.0), UNREACHABLE),
-    ("inside the inner shell", coords(25.0, 0.0, 100.0), UNREACHABLE),
+    ("inside the inner shell, both sides", coords(25.0, 0.0, 100.0 + 45.0), UNREACHABLE),
     ("huge", coords(1.0e20, -1.0e20, 1.0e20), UNREACHABLE),
     ("below the floor, far", coords(0.0, 300.0, -500.0), UNREACHABLE),
     ("on the base axis", coords(0.0, 0.0, 200.0), SINGULAR),

@@ -10,7 +10,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
+from ..faults import PlcFault
 from .image import ProcessImage
+
+__all__ = ["CompiledProgram", "PlcFault", "TaskSpec"]
 
 
 @dataclass(frozen=True)
@@ -25,20 +28,6 @@ class TaskSpec:
     interval_ns: int
     priority: int
     instances: tuple[str, ...]
-
-
-class PlcFault(Exception):
-    """A run-time error inside a scan (division by zero, bounds, watchdog), with the ST source
-    position where it happened (``file.st:12:5``).
-
-    When this escapes :meth:`CompiledProgram.run_task`, the C side has already put the image
-    outputs back to their values from before the faulted scan.
-    """
-
-    def __init__(self, message: str, location: str) -> None:
-        super().__init__(f"{location}: {message}")
-        self.message = message
-        self.location = location
 
 
 class CompiledProgram(Protocol):
