@@ -381,7 +381,6 @@ def test_ik_tool_outputs_follow_document_002(st_module: Any) -> None:
 BAD_TARGETS = [
     ("far", coords(400.0, 0.0, 100.0), UNREACHABLE),
     ("just beyond full stretch", coords(270.1, 0.0, 100.0), UNREACHABLE),
-    ("inside the inner shell, both sides", coords(25.0, 0.0, 100.0 + 45.0), UNREACHABLE),
     ("huge", coords(1.0e20, -1.0e20, 1.0e20), UNREACHABLE),
     ("below the floor, far", coords(0.0, 300.0, -500.0), UNREACHABLE),
     ("on the base axis", coords(0.0, 0.0, 200.0), SINGULAR),
@@ -485,9 +484,19 @@ def test_reachable_shell_edges(st_module: Any) -> None:
         sol = st_module.call("InverseKinematik_V1", Target=target, Geometry=GEO, ElbowUp=True)
         back = st_module.call("ForwardKinematic_V1", Angles=sol, Geometry=GEO)
         assert math.dist((back["X"], back["Y"], back["Z"]), (target["X"], 0.0, target["Z"])) < 0.01
-    # Beyond the tolerance: unreachable.
-    for cp in (high + 0.01, low - 0.01):
-        target = coords(GEOMETRY.a2 + cp, 0.0, GEOMETRY.a1)
-        assert (
-            st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == UNREACHABLE
-        )
+    # Beyond the tolerance: unreachable. Outside the outer shell:
+    target = coords(GEOMETRY.a2 + high + 0.01, 0.0, GEOMETRY.a1)
+    assert st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=GEO) == UNREACHABLE
+    # Inside the inner shell on both sides of the base axis: with the default a2 = 20 mm the
+    # back solution reaches every point near the axis, so take an arm without the offset.
+    geo0 = dict(GEO, A2=0.0)
+    for cp, code in ((low - 0.01, UNREACHABLE), (low - 5.0, UNREACHABLE), (low + 1e-4, NO_ERROR)):
+        target = coords(cp, 0.0, GEOMETRY.a1)
+        assert st_module.call("InverseKinematikCheck_V1", Target=target, Geometry=geo0) == code
+    fb = st_module.new_fb("ArmKinematics")
+    fb(Enable=True, Geometry=geo0, X=100.0, Y=0.0, Z=150.0)
+    held = fb.get("Angles")
+    assert fb.Valid
+    fb(Enable=True, X=low - 5.0, Y=0.0, Z=GEOMETRY.a1)
+    assert fb.Error and fb.ErrorId == UNREACHABLE and not fb.Reachable
+    assert fb.get("Angles") == held

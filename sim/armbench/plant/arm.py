@@ -159,16 +159,24 @@ def inverse(
 ) -> tuple[float, float, float]:
     """(Base, Shoulder, Elbow) in degrees by document 002's geometric method (two acos).
 
-    Base in (-180, 180], Shoulder folded into (-180, 180], Elbow the interior angle (elbow up)
-    or 360 minus it (elbow down). Raises ValueError off the reach shell or on the base axis.
+    Base = atan2(y, x), or that + 180 deg (reaching over the base axis) when only that side
+    reaches the target; Base in (-180, 180], Shoulder folded into (-180, 180], Elbow the
+    interior angle (elbow up) or 360 minus it (elbow down). Raises ValueError off the reach
+    shell or on the base axis.
     """
     radial = math.hypot(x, y)
     if radial < 1e-9:
         raise ValueError("target on the base axis: Base is undefined")
+    base = math.degrees(math.atan2(y, x))
     xp = radial - geometry.a2
     zp = z - geometry.a1
     cp = math.hypot(xp, zp)
     low, high = reach_limits(geometry)
+    if not low <= cp <= high:
+        # Front side out of reach: turn the base by 180 deg and reach over the axis.
+        xp = -radial - geometry.a2
+        cp = math.hypot(xp, zp)
+        base = wrap180(base + 180.0)
     if not (low <= cp <= high) or cp < 1e-12:
         raise ValueError(f"target unreachable: Cp = {cp} mm outside [{low}, {high}]")
     a3, a4 = geometry.a3, geometry.a4
@@ -181,7 +189,7 @@ def inverse(
         shoulder, elbow = phi + alpha, beta
     else:
         shoulder, elbow = phi - alpha, 360.0 - beta
-    return math.degrees(math.atan2(y, x)), wrap180(math.degrees(shoulder)), elbow
+    return base, wrap180(math.degrees(shoulder)), elbow
 
 
 def tool_joints(
