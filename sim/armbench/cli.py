@@ -127,6 +127,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return EXIT_FAIL if plc.fault is not None else EXIT_OK
 
 
+def cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import run
+
+    return run(points=args.points, radius=args.radius, plane=args.plane)
+
+
 def make_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="armbench", description="ST compiler, soft PLC and test bench for the "
                 "arm-kinematics library")
@@ -148,6 +154,11 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--port", type=int, default=5020)
     s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     s.set_defaults(func=cmd_serve)
+    d = sub.add_parser("demo", help="drive the 360-point circle over Modbus through the "
+                       "controller, PCA9685 and servo models")
+    from .demo import add_arguments
+    add_arguments(d)
+    d.set_defaults(func=cmd_demo)
     return p
 
 
