@@ -235,7 +235,7 @@ class Emitter:
         if init is None:
             if isinstance(t, EnumType) and t.values:
                 first = next(iter(t.values.values()))[1]
-                out.append(f"{target} = {first};")
+                out.append(f"{target} = {first if t.default is None else t.default};")
             return
         assert isinstance(init, A.Expr)
         out.append(f"{target} = {self.expr(init, want=t)};")
@@ -264,7 +264,14 @@ class Emitter:
                 continue
             self.init_value(f"self->{v.key}", v.type, v.init, init)
         self.init_fns.append(f"static void {cname}_body({cname} *self);\n")
-        body = "    int plc__brk_ = 0;\n    (void)plc__brk_;\n" + self.block(sym.node.body, 1)
+        temps: list[str] = []
+        if sym.kind != "FUNCTION":  # a FUNCTION's frame is initialised on every call anyway
+            for v in sym.vars.values():
+                if v.kind == A.VAR_TEMP:
+                    temps.append(f"memset(&self->{v.key}, 0, sizeof self->{v.key});")
+                    self.init_value(f"self->{v.key}", v.type, v.init, temps)
+        body = ("    int plc__brk_ = 0;\n    (void)plc__brk_;\n" +
+                "".join(f"    {t}\n" for t in temps) + self.block(sym.node.body, 1))
         self.code.append(
             f"void {cname}_init({cname} *self) {{\n    " + "\n    ".join(init) + "\n}\n"
             f"static void {cname}_body({cname} *self) {{\n{body}}}\n"

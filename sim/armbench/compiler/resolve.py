@@ -138,6 +138,20 @@ class Checker:
         seen.add(key)
         t = self.type_from_ref(td.definition, seen, name=td.name)
         self.types[key] = t
+        if td.init is not None:
+            init = td.init
+            value_name = init.name if isinstance(init, A.Name) else \
+                str(init.value) if isinstance(init, A.Literal) and init.kind == "enum" else None
+            if isinstance(t, EnumType) and value_name is not None and \
+                    value_name.upper() in t.values:
+                t.default = t.values[value_name.upper()][1]
+            elif isinstance(t, EnumType):
+                self.d.error(init.pos, "E0300", f"the default of {t.name} must be one of its "
+                             "values")
+            else:
+                self.d.error(init.pos, "E0105", "unsupported construct: a default value on "
+                             "a derived type other than an enumeration (give the variables "
+                             "initial values instead)")
         return t
 
     def type_from_ref(self, ref: A.TypeRef, seen: set[str] | None = None,

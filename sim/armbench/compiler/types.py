@@ -112,6 +112,7 @@ class StructType(Type):
 class EnumType(Type):
     name: str
     values: dict[str, tuple[str, int]] = field(default_factory=dict)  # UPPER -> (spelling, v)
+    default: int | None = None  # TYPE E : (...) := V; END_TYPE
 
 
 @dataclass(eq=False)
