@@ -7,6 +7,7 @@ armbench.softplc.modbus_map helpers the server and client share.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 
 import pytest
 from softplc_fakes import raw_call
@@ -53,13 +54,14 @@ def test_discrete_inputs_are_ix(image: ProcessImage, client: PlcClient) -> None:
 
 
 def test_bit_tables_end_at_8191(client: PlcClient) -> None:
-    for call in (
+    calls: list[Callable[[], object]] = [
         lambda: client.read_coils(8192, 1),
         lambda: client.read_coils(8190, 3),
         lambda: client.read_discrete_inputs(8192, 1),
         lambda: client.write_coil(8192, True),
         lambda: client.write_coils(8190, [True] * 3),
-    ):
+    ]
+    for call in calls:
         with pytest.raises(ModbusError) as err:
             call()
         assert err.value.code == 2
@@ -164,13 +166,14 @@ def test_reads_and_writes_across_area_boundaries(image: ProcessImage, client: Pl
 def test_holding_ends_at_8191(client: PlcClient) -> None:
     client.write_register(8191, 1)
     assert client.read_holding_registers(8191, 1) == [1]
-    for call in (
+    calls: list[Callable[[], object]] = [
         lambda: client.read_holding_registers(8192, 1),
         lambda: client.read_holding_registers(8190, 3),
         lambda: client.write_register(8192, 1),
         lambda: client.write_registers(8190, [1, 2, 3]),
         lambda: client.read_holding_registers(65535, 1),
-    ):
+    ]
+    for call in calls:
         with pytest.raises(ModbusError) as err:
             call()
         assert err.value.code == 2

@@ -222,6 +222,7 @@ def test_fc16_lands_atomically_between_scans() -> None:
         while not stop.is_set():
             plc.step(fake_now)
             fake_now += 1000
+            time.sleep(0)  # hand the GIL over so the client's requests get through
 
     scanner = threading.Thread(target=scan_forever)
     with ModbusServer(program.image, plc.lock, port=0) as srv, PlcClient(port=srv.port) as c:

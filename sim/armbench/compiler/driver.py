@@ -45,6 +45,7 @@ def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnos
         pf = parse_text(str(path), text, diags)
         parsed.append(pf)
         check_rules(pf, diags)
+    _drop_syntax_cascades(diags)
     if diags.has_errors:
         return None, diags  # no semantic checks after a syntax error: no cascades
     for pf in parsed:
@@ -55,6 +56,14 @@ def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnos
     from .rules import check_names
     check_names(prog, diags)
     return (None if diags.has_errors else prog), diags
+
+
+def _drop_syntax_cascades(diags: Diagnostics) -> None:
+    """A lexical rule (E0101-E0104) already explains the line: drop generic syntax errors there."""
+    explained = {(d.pos.file, d.pos.line) for d in diags.items
+                 if d.code in ("E0101", "E0102", "E0103", "E0104", "E0107")}
+    diags.items = [d for d in diags.items
+                   if not (d.code == "E0100" and (d.pos.file, d.pos.line) in explained)]
 
 
 def check_files(paths: Sequence[str | Path]) -> list[Diagnostic]:

@@ -584,13 +584,16 @@ class Emitter:
     def conversion(self, a: str, src: ElemType, dst: ElemType) -> str:
         if dst.kind == "bool":
             return f"({a} != 0)"
+        # TIME converts in seconds, as MatIEC does (verified with its runtime)
         if src.kind == "time":
-            a = f"({a} / 1000000LL)"  # TIME converts in milliseconds, as CODESYS does
+            if dst.is_real:
+                return f"(({dst.ctype})((double){a} / 1.0e9))"
+            a = f"({a} / 1000000000LL)"
             src = ELEMENTARY["LINT"]
         if dst.kind == "time":
             if src.is_real:
-                return f"((int64_t)nearbyint((double){a} * 1.0e6))"
-            return f"((int64_t){a} * 1000000LL)"
+                return f"((int64_t)nearbyint((double){a} * 1.0e9))"
+            return f"((int64_t){a} * 1000000000LL)"
         if dst.is_real:
             return f"(({dst.ctype}){a})"
         if src.is_real:

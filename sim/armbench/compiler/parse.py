@@ -91,7 +91,12 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
     while stack:
         node = stack.pop()
         if node.is_missing:
-            diags.error(pf.pos(node), "E0100", f"syntax error: missing '{node.type}'")
+            before = pf.data[:node.start_byte].decode("utf-8", "replace").rstrip().upper()
+            if node.type == ";" and before.endswith("END_STRUCT"):
+                diags.error(pf.pos(node), "E0107", "missing ';' after END_STRUCT: MatIEC "
+                            "needs END_STRUCT; inside TYPE ... END_TYPE")
+            else:
+                diags.error(pf.pos(node), "E0100", f"syntax error: missing '{node.type}'")
             continue
         if node.type == "ERROR":
             diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
@@ -105,7 +110,7 @@ def _describe_error(pf: ParsedFile, node: ts.Node) -> str:
     first = snippet[0][:40] if snippet else ""
     prev = node.prev_sibling
     if prev is not None and pf.text_of(prev).strip().upper().endswith("END_STRUCT"):
-        return "syntax error: ';' expected after END_STRUCT"
+        return "syntax error: ';' expected after END_STRUCT (write END_STRUCT;)"
     if first:
         return f"syntax error: unexpected '{first}'"
     return "syntax error"

@@ -30,6 +30,7 @@ from .types import (
     DINT,
     ELEMENTARY,
     INT_LIT,
+    LINT,
     LREAL,
     REAL_LIT,
     TIME,
@@ -734,6 +735,11 @@ class Checker:
         if op == "**":
             self.d.error(e.pos, "E0106", "'**' passes MatIEC but OpenPLC's C build fails "
                          "(no __expt): write EXPT(x, 2.0) or x * x")
+        if op in ("*", "/") and lt is TIME and (rt is INT_LIT or (isinstance(rt, ElemType)
+                                                                and rt.is_int)):
+            if rt is INT_LIT:
+                self.coerce_to(e.right, rt, LINT, f"'{op}'")
+            return TIME
         # settle untyped literals against the other side
         if isinstance(lt, LiteralType) and not isinstance(rt, LiteralType):
             self.coerce_to(e.left, lt, rt, f"'{op}'")
@@ -836,7 +842,8 @@ class Checker:
     # ---------------------------------------------------------------- calls
     def call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
         if not isinstance(c.callee, A.Name):
-            self.d.error(c.pos, "E0400", "only named POUs can be called")
+            if self.expr(c.callee, None) is not ERROR_T:
+                self.d.error(c.pos, "E0400", "only named POUs and FB instances can be called")
             return ERROR_T
         name = c.callee.name
         key = name.upper()

@@ -399,6 +399,8 @@ class ModbusServer:
                 conn.shutdown(socket.SHUT_RDWR)
         for _conn, thread in clients:
             thread.join(timeout_s)
+        with self._clients_lock:
+            self._clients.clear()
         for sock in (self._listener, self._wake_r, self._wake_w):
             if sock is not None:
                 sock.close()
@@ -415,7 +417,7 @@ class ModbusServer:
     @property
     def client_count(self) -> int:
         with self._clients_lock:
-            return len(self._clients)
+            return sum(thread.is_alive() for thread in self._clients.values())
 
     def _accept_loop(self) -> None:
         assert self._listener is not None and self._wake_r is not None
@@ -437,6 +439,11 @@ class ModbusServer:
             _log.exception("accept failed")
             return
         with self._clients_lock:
+            # Finished connections stay listed until here (not removed by their own thread)
+            # so that stop() can join every thread that may still be running.
+            for old_conn, old_thread in list(self._clients.items()):
+                if not old_thread.is_alive():
+                    del self._clients[old_conn]
             if self._closing.is_set() or len(self._clients) >= self.max_clients:
                 conn.close()
                 return
@@ -457,8 +464,6 @@ class ModbusServer:
         except Exception:
             _log.exception("modbus connection failed")
         finally:
-            with self._clients_lock:
-                self._clients.pop(conn, None)
             conn.close()
 
     def _serve_frames(self, conn: socket.socket) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import enum
 import math
+import os
 import threading
 import time
 from collections import deque
@@ -27,6 +28,15 @@ DEFAULT_RESERVOIR = 4096
 DEFAULT_SPIN_NS = 200_000
 # Upper bound on one sleep so stop requests are seen promptly even with long task intervals.
 _MAX_SLEEP_NS = 50_000_000
+
+
+def _set_fifo_priority(priority: int) -> bool:
+    """Make the calling thread SCHED_FIFO (Linux: pid 0 means this thread, not the process)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError):  # not Linux, or no CAP_SYS_NICE
+        return False
+    return True
 
 
 class PlcState(enum.Enum):
@@ -184,6 +194,7 @@ class SoftPlc:
         self._thread: threading.Thread | None = None
         self._stop_event = threading.Event()
         self._wake = threading.Event()
+        self.rt_priority_applied = False
 
     # -- state -----------------------------------------------------------------------------
 
@@ -308,12 +319,20 @@ class SoftPlc:
         duration_s: float | None = None,
         *,
         spin_ns: int = DEFAULT_SPIN_NS,
+        rt_priority: int | None = None,
     ) -> None:
         """Call :meth:`step` at each release time, measured on ``time.monotonic_ns``, until
         ``stop_event`` is set or ``duration_s`` has passed. Blocks the calling thread; enters
-        RUNNING if STOPPED. While not RUNNING (FAULT, halted) it idles until woken."""
+        RUNNING if STOPPED. While not RUNNING (FAULT, halted) it idles until woken.
+
+        ``rt_priority`` (1..99) asks Linux to run this thread SCHED_FIFO, which is what keeps
+        wake-up latency low on a busy machine; without the privilege it is ignored and
+        :attr:`rt_priority_applied` stays False.
+        """
         if stop_event is None and duration_s is None:
             raise ValueError("give a stop_event or a duration_s, or it never returns")
+        if rt_priority is not None:
+            self.rt_priority_applied = _set_fifo_priority(rt_priority)
         stop = stop_event if stop_event is not None else threading.Event()
         end_ns = (
             time.monotonic_ns() + int(duration_s * 1e9) if duration_s is not None else None
@@ -351,7 +370,7 @@ class SoftPlc:
             pass
         return True
 
-    def start(self, *, spin_ns: int = DEFAULT_SPIN_NS) -> None:
+    def start(self, *, spin_ns: int = DEFAULT_SPIN_NS, rt_priority: int | None = None) -> None:
         """Run the real-time loop in a background thread (enters RUNNING)."""
         if self._thread is not None:
             raise RuntimeError("real-time thread already started")
@@ -360,7 +379,7 @@ class SoftPlc:
         thread = threading.Thread(
             target=self.run_realtime,
             args=(self._stop_event,),
-            kwargs={"spin_ns": spin_ns},
+            kwargs={"spin_ns": spin_ns, "rt_priority": rt_priority},
             name="softplc-scan",
             daemon=True,
         )
