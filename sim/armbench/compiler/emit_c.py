@@ -137,7 +137,8 @@ class Emitter:
         self.config_code()
         decls = IMAGE_DECL + "".join(self.typedefs) + API_DECL + "".join(self.protos)
         code = ("#include \"iec_runtime.h\"\n" + decls +
-                "plc_image_t plc_image;\nplc_globals_t plc_globals;\n" +
+                "#ifndef ARMBENCH_BARE_METAL\n"
+                "plc_image_t plc_image;\nplc_globals_t plc_globals;\n#endif\n" +
                 "".join(self.init_fns) + "".join(self.code))
         return CUnit(decls + "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n",
                      code)
@@ -316,6 +317,7 @@ class Emitter:
                     for inst in cfg.instances if (inst.task or "").upper() == task.name.upper())
                 tasks.append(f"    case {i}:\n{runs}        break;\n")
         self.code.append(
+            "#ifndef ARMBENCH_BARE_METAL\n"
             "void plc_config_init(void) {\n    " + "\n    ".join(lines) + "\n}\n"
             "static plc_image_t plc__image_backup;\n"
             "int plc_run_task(int task) {\n"
@@ -325,7 +327,7 @@ class Emitter:
             "        return 1;\n    }\n"
             "    plc__wd_begin();\n"
             "    switch (task) {\n" + "".join(tasks) + "    default: return 2;\n    }\n"
-            "    return 0;\n}\n")
+            "    return 0;\n}\n#endif\n")
 
     # ================================================================ statements
     def block(self, body: list[A.Stmt], depth: int) -> str:
