@@ -6,6 +6,7 @@ import random
 import socket
 import struct
 import threading
+import time
 
 import pytest
 from softplc_fakes import MBAP, closed_by_peer, frame, raw_call, recv_exact, recv_reply
@@ -144,6 +145,11 @@ def test_client_limit(image: ProcessImage) -> None:
                 recv_reply(s)
             with connect(srv) as c:
                 assert closed_by_peer(c)
+        # The slots free up once the server threads have seen a and b close.
+        deadline = time.monotonic() + 10
+        while srv.client_count:
+            assert time.monotonic() < deadline
+            time.sleep(0.001)
         still_serving(srv)
 
 

@@ -292,3 +292,17 @@ def test_run_realtime_for_a_duration_in_caller_thread() -> None:
     assert program.scans["main"] >= 1
     with pytest.raises(ValueError):
         plc.run_realtime()
+
+
+def test_rt_priority_request_is_safe_either_way() -> None:
+    # In a throwaway thread: SCHED_FIFO sticks to the thread that asked for it.
+    program = FakeProgram([task("main", 1)])
+    plc = SoftPlc(program)
+    worker = threading.Thread(
+        target=plc.run_realtime, kwargs={"duration_s": 0.01, "rt_priority": 1}
+    )
+    worker.start()
+    worker.join(10)
+    assert not worker.is_alive()
+    assert program.scans["main"] >= 1
+    assert isinstance(plc.rt_priority_applied, bool)
