@@ -176,6 +176,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PlcFault as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_FAIL
+    except Exception as exc:  # a bench bug must still not greet the user with a traceback
+        print(f"armbench: internal error ({type(exc).__name__}: {exc}); please report it "
+              "with the command and the ST files", file=sys.stderr)
+        return EXIT_FAIL
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ from .emit_c import CUnit, emit
 from .lower import lower
 from .parse import parse_text
 from .resolve import check
-from .rules import check_rules
+from .rules import check_names, check_rules
 from .source import SourcePos
 from .symbols import CheckedProgram
 
@@ -53,7 +53,6 @@ def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnos
     if diags.has_errors:
         return None, diags
     prog = check(units, diags)
-    from .rules import check_names
     check_names(prog, diags)
     return (None if diags.has_errors else prog), diags
 

@@ -23,8 +23,8 @@ from .symbols import CheckedProgram, PouSym, VarSym
 from .types import ArrayType, ElemType, EnumType, PouType, StructType, Type
 
 
-class ValueError_(ValueError):
-    pass
+class PlcArgumentError(ValueError):
+    """A Python value does not fit the ST variable or parameter it is meant for."""
 
 
 def _pou_cname(sym: PouSym) -> str:
@@ -74,25 +74,25 @@ class Values:
     def scalar(self, t: Type, value: Any, what: str) -> Any:
         if isinstance(t, ElemType) and t.is_real:
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ValueError_(f"{what}: expected a number for {t}, got {value!r}")
+                raise PlcArgumentError(f"{what}: expected a number for {t}, got {value!r}")
             return float(value)
         if isinstance(t, ElemType) and t.kind == "bool":
             if not isinstance(value, bool | int):
-                raise ValueError_(f"{what}: expected a bool, got {value!r}")
+                raise PlcArgumentError(f"{what}: expected a bool, got {value!r}")
             return 1 if value else 0
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError_(f"{what}: expected an integer for {t}, got {value!r}")
+            raise PlcArgumentError(f"{what}: expected an integer for {t}, got {value!r}")
         if isinstance(t, ElemType) and t.kind != "time":
             lo, hi = t.int_range()
             if not lo <= value <= hi:
-                raise ValueError_(f"{what}: {value} is outside {t.name} ({lo}..{hi})")
+                raise PlcArgumentError(f"{what}: {value} is outside {t.name} ({lo}..{hi})")
         return value
 
     def fill(self, target: Any, t: Type, value: Any, what: str) -> None:
         if isinstance(t, ArrayType):
             flat = self._flatten(value)
             if len(flat) != t.size:
-                raise ValueError_(f"{what}: expected {t.size} values for {t}, got {len(flat)}")
+                raise PlcArgumentError(f"{what}: expected {t.size} values for {t}, got {len(flat)}")
             for i, v in enumerate(flat):
                 if isinstance(t.element, ElemType | EnumType):
                     target.v[i] = self.scalar(t.element, v, f"{what}[{i}]")
@@ -101,15 +101,15 @@ class Values:
             return
         if isinstance(t, StructType):
             if not isinstance(value, dict):
-                raise ValueError_(f"{what}: expected a dict for {t.name}, got {value!r}")
+                raise PlcArgumentError(f"{what}: expected a dict for {t.name}, got {value!r}")
             for k, v in value.items():
                 f = t.fields.get(str(k).upper())
                 if f is None:
-                    raise ValueError_(f"{what}: {t.name} has no field {k!r} (fields: "
+                    raise PlcArgumentError(f"{what}: {t.name} has no field {k!r} (fields: "
                                       f"{', '.join(s for s, _ in t.fields.values())})")
                 self.assign(target, str(k).upper(), f[1], v, f"{what}.{k}")
             return
-        raise ValueError_(f"{what}: cannot set a {t} from Python")
+        raise PlcArgumentError(f"{what}: cannot set a {t} from Python")
 
     def _flatten(self, value: Any) -> list[Any]:
         if isinstance(value, list | tuple):
@@ -123,7 +123,7 @@ class Values:
                 return [x.item() for x in value.ravel()]
         except ImportError:  # pragma: no cover
             pass
-        raise ValueError_(f"expected a list, got {value!r}")
+        raise PlcArgumentError(f"expected a list, got {value!r}")
 
 
 class Instance:
@@ -153,7 +153,7 @@ class Instance:
         c = getattr(self._c, v.key)
         if v.kind == A.VAR_IN_OUT or v.address:
             if c == self._m.ffi.NULL:
-                raise ValueError_(f"VAR_IN_OUT {v.name} of {self._sym.name} is not bound yet")
+                raise PlcArgumentError(f"VAR_IN_OUT {v.name} of {self._sym.name} is not bound yet")
             c = c[0]
         return self._m.values.to_py(c, v.type)
 
@@ -237,15 +237,15 @@ class Module:
         sym = self.pou(name, ("FUNCTION",))
         inputs = sym.inputs()
         if args and kwargs:
-            raise ValueError_(f"{sym.name}: pass arguments all positional or all named")
+            raise PlcArgumentError(f"{sym.name}: pass arguments all positional or all named")
         if len(args) > len(inputs):
-            raise ValueError_(f"{sym.name} takes {len(inputs)} inputs, {len(args)} given")
+            raise PlcArgumentError(f"{sym.name} takes {len(inputs)} inputs, {len(args)} given")
         frame = Instance(self, sym)
         named = dict(zip((v.name for v in inputs), args, strict=False)) if args else kwargs
         frame.set(**named)
         for v in inputs:
             if v.kind == A.VAR_IN_OUT and v.key not in frame._keep:
-                raise ValueError_(f"{sym.name}: VAR_IN_OUT {v.name} must be passed")
+                raise PlcArgumentError(f"{sym.name}: VAR_IN_OUT {v.name} must be passed")
         if frame._run(frame._c) != 0:
             raise self.fault()
         assert sym.return_type is not None
@@ -273,7 +273,7 @@ class Module:
         if rc == 1:
             raise self.fault()
         if rc != 0:
-            raise ValueError_(f"no task with index {index}")
+            raise PlcArgumentError(f"no task with index {index}")
 
     def instance(self, name: str) -> Instance:
         cfg = self.program.config

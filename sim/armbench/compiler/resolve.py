@@ -290,8 +290,6 @@ class Checker:
                         isinstance(t, ArrayType):
                     self.d.error(decl.pos, "E0405", f"array input '{decl.name}' of FUNCTION "
                                  f"{p.name}: MatIEC's C for it does not compile")
-                if blk.constant and decl.init is None:
-                    pass
                 p.vars[key] = VarSym(decl.name, t, blk.kind, blk.constant, decl.pos, decl.init,
                                      decl.address)
 
@@ -523,9 +521,6 @@ class Checker:
             v = ref.var
             if v.constant:
                 self.d.error(e.pos, "E0302", f"'{v.name}' is a CONSTANT")
-            elif self.cur is not None and self.cur.kind == "FUNCTION" and \
-                    v.kind == A.VAR_INPUT and root is e:
-                pass  # MatIEC allows assigning a function's own input (a local copy)
             if isinstance(e, A.Member) and isinstance(self.expr_types.get(e.obj), PouType):
                 inst_t = self.expr_types[e.obj]
                 assert isinstance(inst_t, PouType)
@@ -664,7 +659,6 @@ class Checker:
 
     def name(self, e: A.Name) -> Type:
         key = e.name.upper()
-        assert self.cur is not None or True
         if self.cur is not None:
             v = self.cur.vars.get(key)
             if v is not None:
@@ -814,8 +808,7 @@ class Checker:
         if isinstance(t, LiteralType):
             if isinstance(target, ElemType):
                 self.check_literal_fits(e, t, target)
-                if not self.d.has_errors or True:
-                    self.settle(e, target)
+                self.settle(e, target)
             elif isinstance(target, LiteralType):
                 return
             else:
@@ -1003,7 +996,8 @@ class Checker:
                         return ERROR_T
                     t = expected if isinstance(expected, ElemType) and expected.is_real \
                         else REAL_LIT
-                    self.coerce_to(args[0], REAL_LIT, t, f.name) if t is not REAL_LIT else None
+                    if t is not REAL_LIT:
+                        self.coerce_to(args[0], REAL_LIT, t, f.name)
                 if t is not REAL_LIT and not (isinstance(t, ElemType) and t.is_real):
                     self.d.error(args[0].pos, "E0300", f"{f.name} needs REAL or LREAL, not "
                                  f"{t}")
