@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -79,16 +80,21 @@ def cmd_run(args: argparse.Namespace) -> int:
         status = EXIT_FAIL
     if args.dump:
         dump = {name: prog.instance_vars(name) for name in prog.instance_names()}
-        print(json.dumps(dump, indent=2, default=_json_default))
+        print(json.dumps(_finite(dump), indent=2))
     else:
         print(f"ran {scans} cycle(s) of {base / 1e6:g} ms; state {plc.state.name}")
     return status
 
 
-def _json_default(o: object) -> object:
-    if isinstance(o, float):
+def _finite(o: object) -> object:
+    """Strict JSON has no NaN/Infinity: write those as the strings "nan", "inf", "-inf"."""
+    if isinstance(o, float) and not math.isfinite(o):
         return repr(o)
-    raise TypeError(f"not JSON-able: {o!r}")
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, list):
+        return [_finite(v) for v in o]
+    return o
 
 
 def cmd_serve(args: argparse.Namespace) -> int:

@@ -1,0 +1,122 @@
+"""The armbench command line: exit codes, JSON dump, and serve answering Modbus."""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from armbench.cli import main
+
+PROGRAM = """
+PROGRAM Main
+VAR
+  n : DINT;
+  r : REAL := 0.5;
+END_VAR
+VAR
+  out AT %QW2 : INT;
+  val AT %MD0 : REAL;
+END_VAR
+  n := n + 1;
+  out := DINT_TO_INT(n);
+  val := r * DINT_TO_REAL(n);
+END_PROGRAM
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM inst0 WITH task0 : Main;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.fixture()
+def prog(tmp_path: Path) -> Path:
+    p = tmp_path / "prog.st"
+    p.write_text(PROGRAM)
+    return p
+
+
+def test_check_ok_and_error(prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", str(prog)]) == 0
+    bad = tmp_path / "bad.st"
+    bad.write_text(PROGRAM.replace("r * DINT_TO_REAL(n)", "r * n"))
+    assert main(["check", str(bad)]) == 1
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1 and out[0].startswith(f"{bad}:13:")
+    assert "error[E0300]" in out[0]
+
+
+def test_usage_errors_exit_2(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["frobnicate"])
+    assert exc.value.code == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["check", str(tmp_path / "missing.st")])
+    assert exc.value.code == 2
+
+
+def test_run_dump_is_json(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", str(prog), "--cycles", "4", "--dump"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["inst0"]["n"] == 4
+    assert data["inst0"]["val"] == 2.0  # 0.5 * 4, computed in REAL
+
+
+def test_run_reports_fault_with_position(prog: Path, tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "div.st"
+    src.write_text(PROGRAM.replace("n := n + 1;",
+                                   "n := n + 1;\n  IF n >= 3 THEN n := 10 / (n - n); END_IF;"))
+    assert main(["run", str(src), "--cycles", "5"]) == 1
+    # the position is the division's: line 12, column of `10 / ...`
+    assert f"{src}:12:23: PLC fault: integer division by zero" in capsys.readouterr().err
+
+
+def test_build_is_cached(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    main(["build", str(prog)])
+    capsys.readouterr()
+    assert main(["build", str(prog)]) == 0
+    assert "cached" in capsys.readouterr().out
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def test_serve_answers_modbus(prog: Path) -> None:
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "armbench.cli", "serve", str(prog),
+                             "--port", str(port), "--duration", "3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert "serving Modbus TCP" in proc.stdout.readline()
+        deadline = time.monotonic() + 2.0
+        with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
+            # FC3 read holding registers 2 (%QW2) and 2048..2049 (%MD0), raw MBAP frames
+            while True:
+                s.sendall(struct.pack(">HHHBBHH", 1, 0, 6, 1, 3, 2048, 2))
+                reply = s.recv(64)
+                hi, lo = struct.unpack(">HH", reply[9:13])
+                val = struct.unpack(">f", struct.pack(">HH", hi, lo))[0]
+                if val > 1.0 or time.monotonic() > deadline:
+                    break
+            assert val > 1.0 and val == int(val * 2) / 2  # 0.5 * n
+            s.sendall(struct.pack(">HHHBBHH", 2, 0, 6, 1, 3, 2, 1))
+            reply = s.recv(64)
+            assert struct.unpack(">H", reply[9:11])[0] >= 2
+        assert proc.wait(timeout=10) == 0
+    finally:
+        proc.kill()
+        proc.wait()
