@@ -61,6 +61,7 @@ class Checker:
         self.globals: dict[str, VarSym] = {}
         self.enum_values: dict[str, list[tuple[EnumType, int]]] = {}
         self.call_graph: dict[str, set[str]] = {}
+        self.call_sites: dict[tuple[str, str], SourcePos] = {}  # first call of callee by caller
         self.cur: PouSym | None = None
         self.loop_depth = 0
         self.global_consts: dict[str, int] = {}
@@ -401,7 +402,7 @@ class Checker:
             return
         if isinstance(init, A.ArrayInit):
             if not isinstance(t, ArrayType):
-                self.d.error(init.pos, "E0300", f"array initialiser for a {t}")
+                self.d.error(init.pos, "E0300", f"array initialiser for {_a(t)}")
                 return
             count = 0
             for n, v in init.items:
@@ -421,7 +422,7 @@ class Checker:
             return
         if isinstance(init, A.StructInit):
             if not isinstance(t, StructType):
-                self.d.error(init.pos, "E0300", f"structure initialiser for a {t}")
+                self.d.error(init.pos, "E0300", f"structure initialiser for {_a(t)}")
                 return
             for fname, fv in init.fields:
                 f = t.fields.get(fname.upper())
@@ -570,7 +571,7 @@ class Checker:
                     self.d.error(e.pos, "E0305", f"{sym.name} has no variable '{e.member}'")
                     return ERROR_T
                 return v.type
-            self.d.error(e.pos, "E0305", f"'.{e.member}' on a {ot}")
+            self.d.error(e.pos, "E0305", f"'.{e.member}' on {_a(ot)}")
             return ERROR_T
         if isinstance(e, A.Index):
             ot = self.expr(e.obj, None)
@@ -583,7 +584,7 @@ class Checker:
             if ot is ERROR_T:
                 return ERROR_T
             if not isinstance(ot, ArrayType):
-                self.d.error(e.pos, "E0306", f"indexing a {ot}")
+                self.d.error(e.pos, "E0306", f"indexing {_a(ot)}")
                 return ERROR_T
             if len(e.indices) != len(ot.dims):
                 self.d.error(e.pos, "E0307", f"{len(e.indices)} indices for a "
@@ -655,7 +656,7 @@ class Checker:
             self.d.error(e.pos, "E0301", f"integer literal where {t.name} is needed: "
                          "MatIEC has no implicit conversion")
         else:
-            self.d.error(e.pos, "E0300", f"a {lit_t} cannot be a {t.name}")
+            self.d.error(e.pos, "E0300", f"{_a(lit_t)} cannot be {_a(t.name)}")
 
     def name(self, e: A.Name) -> Type:
         key = e.name.upper()
@@ -812,7 +813,7 @@ class Checker:
             elif isinstance(target, LiteralType):
                 return
             else:
-                self.d.error(e.pos, "E0300", f"{what}: a {t} cannot be a {target}")
+                self.d.error(e.pos, "E0300", f"{what}: {_a(t)} cannot be {_a(target)}")
             return
         if same_type(t, target):
             return
@@ -860,7 +861,7 @@ class Checker:
                              "not inside an expression")
             return self.bind(c, sym, "fb", ERROR_T)
         if inst_t is not None:
-            self.d.error(c.pos, "E0400", f"'{name}' is a {inst_t}, not a FUNCTION or FB "
+            self.d.error(c.pos, "E0400", f"'{name}' is {_a(inst_t)}, not a FUNCTION or FB "
                          "instance")
             return ERROR_T
         if statement:
@@ -899,6 +900,7 @@ class Checker:
             return ERROR_T
         if self.cur is not None:
             self.call_graph.setdefault(self.cur.key, set()).add(key)
+            self.call_sites.setdefault((self.cur.key, key), c.pos)
         return self.bind(c, sym, "function", sym.return_type or ERROR_T)
 
     def bind(self, c: A.Call, sym: PouSym, kind: str, result: Type) -> Type:
@@ -1134,10 +1136,11 @@ class Checker:
             state[k] = 1
             for callee in sorted(self.call_graph.get(k, ())):
                 if state.get(callee) == 1:
-                    sym = self.pous[callee]
-                    assert sym.node is not None
-                    self.d.error(sym.node.pos, "E0209", f"recursive call cycle: "
-                                 f"{' -> '.join(path + [callee])}")
+                    cycle = path[path.index(callee):] + [callee]
+                    names = " -> ".join(self.pous[n].name for n in cycle)
+                    self.d.error(self.call_sites[(k, callee)], "E0209",
+                                 f"recursive call cycle {names}: IEC 61131-3 and MatIEC "
+                                 "forbid recursion")
                 elif state.get(callee) is None:
                     visit(callee, path + [callee])
             state[k] = 2
@@ -1172,6 +1175,12 @@ class Checker:
         for p in self.user_pous():
             visit(p, set())
         return out
+
+
+def _a(t: object) -> str:
+    """'a REAL', 'an INT': the article for a type name in a message."""
+    name = str(t)
+    return f"an {name}" if name[:1].upper() in "AEIOU" else f"a {name}"
 
 
 def check(units: list[A.SourceUnit], diags: Diagnostics) -> CheckedProgram:
