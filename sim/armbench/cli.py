@@ -134,9 +134,24 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run
+    from .demo import run_from_args
 
-    return run(points=args.points, radius=args.radius, plane=args.plane)
+    return run_from_args(args)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from .export import OUT_DIR, generate
+
+    exp = generate(_files(args.files) if args.files else None)
+    out = Path(args.out) if args.out is not None else OUT_DIR
+    if args.check:
+        stale = exp.stale(out)
+        for path, why in stale:
+            print(f"stale: {path} ({why}); regenerate with `armbench export`")
+        return EXIT_FAIL if stale else EXIT_OK
+    for path in exp.write(out):
+        print(f"wrote {path}")
+    return EXIT_OK
 
 
 def make_parser() -> argparse.ArgumentParser:
@@ -160,6 +175,13 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--port", type=int, default=5020)
     s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     s.set_defaults(func=cmd_serve)
+    x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML "
+                       "(default: st/*.st + plc_project/Controller.st -> plc_project/)")
+    x.add_argument("files", nargs="*", help=".st files or folders (default: the project)")
+    x.add_argument("--out", default=None, help="output folder (default: plc_project/)")
+    x.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 when the files in the output folder are stale")
+    x.set_defaults(func=cmd_export)
     d = sub.add_parser("demo", help="drive the 360-point circle over Modbus through the "
                        "controller, PCA9685 and servo models")
     from .demo import add_arguments

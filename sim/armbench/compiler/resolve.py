@@ -214,6 +214,8 @@ class Checker:
             nxt = 0
             for v in ref.values:
                 if v.value is not None:
+                    self.d.error(v.pos, "E0105", f"explicit enumeration value '{v.name} := ...': "
+                                 "MatIEC rejects it; list the values without numbers")
                     c = self.literal_bound(v.value)
                     nxt = c if c is not None else nxt
                 et.values[v.name.upper()] = (v.name, nxt)
@@ -428,6 +430,10 @@ class Checker:
                 f = t.fields.get(fname.upper())
                 if f is None:
                     self.d.error(init.pos, "E0305", f"{t.name} has no field '{fname}'")
+                    continue
+                if isinstance(f[1], EnumType):
+                    self.d.error(fv.pos, "E0105", f"enumerated field '{fname}' in a structure "
+                                 "initialiser crashes MatIEC: set it in the code instead")
                     continue
                 self.check_init(fv, f[1])
             return

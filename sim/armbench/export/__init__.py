@@ -1,0 +1,21 @@
+"""Exports for real PLCs: the OpenPLC Runtime upload file and PLCopen TC6 XML.
+
+``armbench export`` checks the sources (default ``st/*.st`` + ``plc_project/Controller.st``),
+orders them types first, and writes into ``plc_project/``:
+
+- ``openplc/arm_controller.st``: one ST file (library + program + configuration), the sources'
+  text unchanged behind a generated header (:mod:`.openplc`);
+- ``plcopen/arm_controller.xml``: PLCopen TC6 XML v2.01 for CODESYS and the OpenPLC Editor
+  (:mod:`.plcopen`).
+
+``armbench export --check`` compares instead of writing. Pipeline: :mod:`.generate` runs the
+checker, :mod:`.sources` orders the files, :mod:`.sttext` slices bodies and comments.
+"""
+
+from __future__ import annotations
+
+from .generate import OPENPLC_FILE, PLCOPEN_FILE, Export, generate, load_sources
+from .sources import OUT_DIR, default_sources
+
+__all__ = ["OPENPLC_FILE", "OUT_DIR", "PLCOPEN_FILE", "Export", "default_sources", "generate",
+           "load_sources"]

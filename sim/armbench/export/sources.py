@@ -1,0 +1,108 @@
+"""Export sources: which ST files, their text, and a dependency-safe order.
+
+Needs: the files already pass the checker (``driver.analyse`` returned a CheckedProgram); the
+order is computed from that program's AST (``units``), one unit per file.
+
+A file comes after every file that declares a name it uses (a type, a POU, an enumeration
+value); among files that are free to go, those holding only TYPE declarations go first, then
+the given order. A dependency cycle between files (legal: the checker resolves names over the
+whole program) keeps the given order for the files in the cycle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..compiler import ast as A
+
+REPO = Path(__file__).resolve().parents[3]
+LIBRARY_DIR = REPO / "st"
+CONTROLLER = REPO / "plc_project" / "Controller.st"
+OUT_DIR = REPO / "plc_project"
+
+
+def default_sources() -> list[Path]:
+    """st/*.st (sorted) then plc_project/Controller.st."""
+    return [*sorted(LIBRARY_DIR.glob("*.st")), CONTROLLER]
+
+
+def display_name(path: Path) -> str:
+    """The path as written in generated files: repo-relative when inside the repo."""
+    try:
+        return path.resolve().relative_to(REPO).as_posix()
+    except ValueError:
+        return path.as_posix()
+
+
+@dataclass(frozen=True)
+class Source:
+    """One ST file: its path, the name shown in generated files, its text and its AST."""
+
+    path: Path
+    name: str
+    text: str
+    unit: A.SourceUnit
+
+
+def _walk(obj: object) -> Iterator[object]:
+    """Every AST node and plain value below obj (dataclass fields, lists, tuples, dicts)."""
+    stack: list[object] = [obj]
+    while stack:
+        cur = stack.pop()
+        yield cur
+        if isinstance(cur, A.Node):
+            stack.extend(getattr(cur, f.name) for f in dataclasses.fields(cur))
+        elif isinstance(cur, list | tuple):
+            stack.extend(cur)
+        elif isinstance(cur, dict):
+            stack.extend(cur.values())
+
+
+def declared_names(unit: A.SourceUnit) -> set[str]:
+    names = {t.name.upper() for t in unit.types} | {p.name.upper() for p in unit.pous}
+    for t in unit.types:
+        if isinstance(t.definition, A.EnumTypeRef):
+            names |= {v.name.upper() for v in t.definition.values}
+    return names
+
+
+def used_names(unit: A.SourceUnit) -> set[str]:
+    used: set[str] = set()
+    for node in _walk(unit):
+        if isinstance(node, A.NamedTypeRef | A.Name):
+            used.add(node.name.upper())
+        elif isinstance(node, A.Literal) and node.type_prefix:
+            used.add(node.type_prefix.upper())
+        elif isinstance(node, A.ProgramInst):
+            used.add(node.type_name.upper())
+        elif isinstance(node, A.SubrangeTypeRef):
+            used.add(node.base.upper())
+    return used
+
+
+def dependency_order(units: Sequence[A.SourceUnit]) -> list[int]:
+    """Indices of units, each after the units declaring the names it uses (types first)."""
+    n = len(units)
+    decl = [declared_names(u) for u in units]
+    deps: list[set[int]] = []
+    for i, u in enumerate(units):
+        use = used_names(u) - decl[i]
+        deps.append({j for j in range(n) if j != i and use & decl[j]})
+
+    def rank(i: int) -> tuple[int, int]:
+        types_only = bool(units[i].types) and not units[i].pous and not units[i].configs
+        return (0 if types_only else 1, i)
+
+    done: list[int] = []
+    left = set(range(n))
+    while left:
+        ready = [i for i in left if not (deps[i] & left)]
+        if not ready:  # a cycle: keep the given order for what remains
+            ready = [min(left, key=rank)]
+        nxt = min(ready, key=rank)
+        done.append(nxt)
+        left.remove(nxt)
+    return done
