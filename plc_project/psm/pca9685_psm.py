@@ -25,19 +25,25 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 # ---------------------------------------------------------------- PLC variable map
-# The lead aligns these with the project's register map; the ST side must match them.
+# These are the located variables of plc_project/Controller.st (see docs/register-map.md);
+# tests/plant/test_psm.py checks them against the register map derived from the program.
+# The PSM exchanges only %IX/%QX 0.0..49.7 and %IW/%QW 0..49 with the runtime, so everything
+# the driver needs lives there (the controller's %MW init frames are for other I2C hooks: this
+# driver computes the same initialisation itself).
 
-# %QW0..%QW15: channel n's LEDn_OFF word, i.e. the pulse width in PCA9685 ticks
-# (1 tick = (PRE_SCALE + 1) / 25 MHz = 4.88 us at 50 Hz; 205/307/410 ~ 1.0/1.5/2.0 ms).
+# %QW0..%QW15 (Ch00Off..Ch15Off): channel n's LEDn_OFF word, i.e. the pulse width in PCA9685
+# ticks (1 tick = (PRE_SCALE + 1) / 25 MHz = 4.88 us at 50 Hz; 205/307/410 ~ 1.0/1.5/2.0 ms).
 # Bit 12 (16#1000) or a zero count means "full OFF": no pulse, the servo goes limp.
 # Words above 16#1FFF are invalid: the channel is switched full OFF and FAULT is raised.
 CHANNEL_VARS: tuple[str, ...] = tuple(f"QW{channel}" for channel in range(16))
-# %QX0.0: init request. A rising edge re-runs the chip initialisation (the driver only writes,
-# so it cannot see a board that was power-cycled; the PLC program can ask for a re-init).
+# %QX0.0 (PwmInitRequest): TRUE while the controller's InitPwm command runs. A rising edge
+# re-runs the chip initialisation (the driver only writes, so it cannot see a board that was
+# power-cycled; the PLC program asks for a re-init).
 INIT_REQUEST_VAR = "QX0.0"
-# %IX0.0: TRUE while the chip is initialised and the last cycle's I2C writes succeeded.
+# %IX0.0 (PwmDriverReady): TRUE while the chip is initialised and the last cycle's I2C writes
+# succeeded.
 READY_VAR = "IX0.0"
-# %IX0.1: TRUE when the last cycle had an I2C error or an invalid channel word.
+# %IX0.1 (PwmDriverFault): TRUE when the last cycle had an I2C error or an invalid channel word.
 FAULT_VAR = "IX0.1"
 
 # ---------------------------------------------------------------- hardware settings

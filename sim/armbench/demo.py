@@ -1,11 +1,14 @@
 """``armbench demo``: the 360-point circle of SEEDS document 000, driven over Modbus.
 
 Compiles the library and ``plc_project/Controller.st``, runs the soft PLC in real time with
-its Modbus server on a free loopback port, and talks to it only through Modbus: one command
-per point with the request/acknowledge handshake. Each point's 16 PCA9685 words go into the
+its Modbus server on a free loopback port, and talks to it only through Modbus. The servo
+calibration is read back from the PLC (one copy of the zero offsets: the program's). The whole
+path is first checked with SolveBatch commands (32 points per scan), then driven with one
+MoveXyz per point (request/acknowledge handshake). Each point's 16 PCA9685 words go into the
 PCA9685 device model, its pulse widths into three MG996R servo models, and the settled servo
 angles through the numpy reference kinematics: the achieved tool position, compared with the
-commanded one (the difference includes the 12-bit PWM quantisation).
+commanded one (the difference includes the 12-bit PWM quantisation). Plots of the run go to
+``--out`` (default ``out/demo``) as PNGs.
 """
 
 from __future__ import annotations
@@ -17,9 +20,10 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TextIO
 
-from .controller_client import ArmControllerClient
+from .controller_client import ArmControllerClient, Calibration
 from .plant import arm
 from .plant.pca9685 import PCA9685
 from .plant.servo import MG996R
@@ -29,11 +33,10 @@ from .softplc.modbus_client import PlcClient
 from .softplc.modbus_server import ModbusServer
 from .softplc.scan import SoftPlc
 
-# Servo zero offsets of Controller.st (ShoulderZeroDeg, ElbowZeroDeg; Base 0): joint angle =
-# servo angle + offset. Channels 0, 1, 2 = Base, Shoulder, Elbow.
-JOINT_ZERO_DEG = (0.0, 70.0, 65.0)
+# Channels 0, 1, 2 = Base, Shoulder, Elbow (Controller.st).
 SERVO_CHANNELS = (0, 1, 2)
 PCA9685_ADDRESS = 0x40
+DEFAULT_OUT = Path("out") / "demo"
 
 
 @dataclass
@@ -74,11 +77,13 @@ def circle(n: int, centre: tuple[float, float, float], radius: float,
 
 
 class Plant:
-    """PCA9685 model + three MG996R models + reference kinematics."""
+    """PCA9685 model + three MG996R models + reference kinematics. ``calibration`` says how
+    each servo is mounted (joint angle at servo centre, direction): the PLC's read-back."""
 
-    def __init__(self) -> None:
+    def __init__(self, calibration: Sequence[Calibration]) -> None:
         self.pca = PCA9685(address=PCA9685_ADDRESS)
         self.servos = [MG996R() for _ in SERVO_CHANNELS]
+        self.calibration = list(calibration)
         self.settle_s = 0.0
 
     def apply_init_frames(self, frames: Sequence[tuple[int, int]]) -> None:
@@ -100,7 +105,8 @@ class Plant:
             if not any(s.moving for s in self.servos) or t >= max_s:
                 break
         self.settle_s += t
-        a = [s.angle_deg + z for s, z in zip(self.servos, JOINT_ZERO_DEG, strict=True)]
+        a = [c.servo_to_joint(s.angle_deg)
+             for s, c in zip(self.servos, self.calibration, strict=True)]
         return a[0], a[1], a[2]
 
 
@@ -111,7 +117,8 @@ def _bar(done: int, total: int, width: int = 40) -> str:
 
 def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
         centre: tuple[float, float, float] = (150.0, 0.0, 120.0),
-        out: TextIO | None = None) -> int:
+        out: TextIO | None = None, out_dir: Path | None = DEFAULT_OUT,
+        poll_ms: float = 0.5) -> int:
     stream = out if out is not None else sys.stdout
     write = stream.write
     t0 = time.perf_counter()
@@ -119,9 +126,15 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
         compile_s = time.perf_counter() - t0
         write(f"soft PLC running (10 ms task), Modbus on {running.host}:{running.port}; "
               f"compile+load {compile_s:.2f} s\n")
-        plant = Plant()
         with PlcClient(running.host, running.port) as modbus:
-            ctl = ArmControllerClient(modbus)
+            ctl = ArmControllerClient(modbus, poll_interval_s=poll_ms / 1000.0)
+            cals = ctl.calibration()
+            write("servo calibration (read back): " + "; ".join(
+                f"{name} zero {c.zero_offset_deg:g} deg dir {c.direction:+d} "
+                f"{c.min_pulse_us:g}..{c.max_pulse_us:g} us = "
+                f"{c.min_angle_deg:g}..{c.max_angle_deg:g} deg"
+                for name, c in zip(("Base", "Shoulder", "Elbow"), cals, strict=True)) + "\n")
+            plant = Plant(cals)
             st = ctl.init_pwm()
             if st.error_id != 0:
                 write(f"PCA9685 init failed: ErrorId {st.error_id}\n")
@@ -129,11 +142,27 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
             plant.apply_init_frames(ctl.init_frames())
             write(f"PCA9685 initialised: prescale {st.prescale}, "
                   f"{plant.pca.update_rate_hz:.2f} Hz, running={plant.pca.running}\n")
+            pts = circle(points, centre, radius, plane)
+            tb = time.perf_counter()
+            checked = ctl.batch_roundtrip(pts)
+            batch_s = time.perf_counter() - tb
+            unreachable = sum(1 for r in checked if r.error_id != 0)
+            batch_echo = max((math.dist(p, r.echo_mm) for p, r in zip(pts, checked, strict=True)
+                              if r.error_id == 0), default=math.inf)
+            write(f"path check (SolveBatch, {ctl.batch_max} points/command): {points} points in "
+                  f"{math.ceil(points / ctl.batch_max)} commands, {batch_s * 1000:.0f} ms, "
+                  f"{unreachable} rejected, max |commanded - FK echo| {batch_echo:.5f} mm\n")
             running.plc.reset_stats()
+            ctl.polls = 0
             errs: list[float] = []
             echo_errs: list[float] = []
+            rec_cmd: list[tuple[float, float, float]] = []
+            rec_ach: list[tuple[float, float, float]] = []
+            rec_joints: list[tuple[float, float, float]] = []
+            rec_ach_joints: list[tuple[float, float, float]] = []
+            rec_pulses: list[tuple[float, float, float]] = []
+            rec_counts: list[tuple[float, float, float]] = []
             failures = 0
-            pts = circle(points, centre, radius, plane)
             t_start = time.perf_counter()
             for i, p in enumerate(pts, start=1):
                 st = ctl.move_xyz(*p)
@@ -142,9 +171,16 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
                     continue
                 words = ctl.channel_words()
                 joints = plant.drive(words)
-                achieved = arm.forward(*joints)
+                fk = arm.forward(*joints)
+                achieved = (float(fk[0]), float(fk[1]), float(fk[2]))
                 errs.append(math.dist(p, achieved))
                 echo_errs.append(math.dist(p, st.echo_mm))
+                rec_cmd.append(p)
+                rec_ach.append(achieved)
+                rec_joints.append(st.joints_deg)
+                rec_ach_joints.append(joints)
+                rec_pulses.append(st.pulses_us)
+                rec_counts.append((words[0] & 0xFFF, words[1] & 0xFFF, words[2] & 0xFFF))
                 if i % 4 == 0 or i == points:
                     write(_bar(i, points))
                     stream.flush()
@@ -158,21 +194,34 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
               f"max {max(errs):.3f} mm, mean {sum(errs) / len(errs):.3f} mm\n")
         write(f"|commanded - FK echo| (PLC REAL arithmetic): max {max(echo_errs):.5f} mm\n")
     write(f"throughput: {points / elapsed:.1f} points/s ({elapsed:.2f} s, "
-          f"{ctl.polls} status polls); simulated servo settle time {plant.settle_s:.1f} s\n")
+          f"{ctl.polls} AckSeq polls, poll interval {poll_ms:g} ms); "
+          f"simulated servo settle time {plant.settle_s:.1f} s\n")
     for s in stats.values():
         write(f"PLC task {s.name}: {s.scans} scans every {s.interval_ns / 1e6:g} ms, "
               f"overruns {s.overruns}, execution mean {s.execution.mean_ns / 1e3:.1f} us "
               f"max {s.execution.max_ns / 1e3:.1f} us, jitter p50 {s.jitter.p50_ns / 1e3:.1f} us "
               f"p99 {s.jitter.p99_ns / 1e3:.1f} us max {s.jitter.max_ns / 1e3:.1f} us\n")
-    ok = failures == 0 and bool(errs) and max(echo_errs) <= 0.05
+    if out_dir is not None and rec_cmd:
+        from .plots import demo_plots  # matplotlib is imported only when plotting
+
+        for path in demo_plots(out_dir, rec_cmd, rec_ach, rec_joints, rec_ach_joints,
+                               rec_pulses, rec_counts):
+            write(f"plot: {path}\n")
+    ok = (failures == 0 and unreachable == 0 and bool(errs) and max(echo_errs) <= 0.05
+          and batch_echo <= 0.05)
     return 0 if ok else 1
+
+
+def run_from_args(a: argparse.Namespace) -> int:
+    """Run with the options of :func:`add_arguments`."""
+    return run(points=a.points, radius=a.radius, plane=a.plane,
+               out_dir=None if a.no_plots else Path(a.out), poll_ms=a.poll_ms)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="armbench demo", description=__doc__)
     add_arguments(p)
-    a = p.parse_args(argv)
-    return run(points=a.points, radius=a.radius, plane=a.plane)
+    return run_from_args(p.parse_args(argv))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -180,6 +229,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--radius", type=float, default=40.0, help="mm (40)")
     p.add_argument("--plane", choices=("xy", "xz"), default="xy",
                    help="xy horizontal (default) or xz vertical, centre (150, 0, 120) mm")
+    p.add_argument("--out", default=str(DEFAULT_OUT),
+                   help="folder for the PNG plots (out/demo, git-ignored)")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--poll-ms", type=float, default=0.5,
+                   help="sleep between AckSeq polls in ms (0.5; 0 = busy loop)")
 
 
 if __name__ == "__main__":

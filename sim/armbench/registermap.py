@@ -136,9 +136,11 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "fails when this file is stale. Addresses are 0-based Modbus addresses of OpenPLC v3",
         "(DESIGN.md §5.3); 32-bit values take two registers, most significant word first.",
         "",
-        "Handshake: write the whole command block (`%MD0`..`%MD8`) with one function-16",
-        "request with `CmdSeq` = `AckSeq` + 1, then poll `AckSeq` until it equals `CmdSeq`;",
-        "`ErrorId` is then the command's result (see the header of `Controller.st`).",
+        "Handshake: write the whole command block (the `Cmd...` registers) with one",
+        "function-16 request with `CmdSeq` = `AckSeq` + 1, then poll `AckSeq` until it equals",
+        "`CmdSeq`; `ErrorId` is then the command's result. `SolveBatch` targets are written",
+        "before the command block, its results read after the acknowledge. Commands, error",
+        "codes and calibration: see the header of `Controller.st`.",
         "",
     ]
     groups: list[str] = []

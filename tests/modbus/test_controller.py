@@ -1,26 +1,36 @@
-"""The controller over Modbus: FK∘IK, rejected commands, PWM words (tests/modbus/conftest.py)."""
+"""The controller over Modbus: FK∘IK, rejected commands, PWM words, calibration, SolveBatch
+(tests/modbus/conftest.py)."""
 
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Iterator
 
+import numpy as np
 import pytest
 
 from armbench.controller_client import (
+    CMD_INIT_PWM,
     CMD_RELAX,
+    CMD_SOLVE_BATCH,
+    ERR_BAD_CALIBRATION,
+    ERR_BAD_COUNT,
+    ERR_BAD_JOINT,
     ERR_JOINT_LIMIT,
     ERR_NOT_FINITE,
     ERR_UNKNOWN_COMMAND,
     ERR_UNREACHABLE,
     ArmControllerClient,
+    Calibration,
     Status,
 )
 from armbench.plant import arm
+from armbench.registermap import controller_map
 
 OSC_HZ = 25.0e6
 PRESCALE = 121
 F_UPDATE_HZ = OSC_HZ / (4096 * (PRESCALE + 1))  # datasheet equation 1: 50.03 Hz
-ZERO_DEG = (0.0, 70.0, 65.0)  # Controller.st servo zero offsets
 
 
 def _targets(n: int) -> list[tuple[float, float, float]]:
@@ -92,7 +102,7 @@ def test_non_finite_target_is_rejected(plc: ArmControllerClient, bad: float) -> 
 def test_unknown_command_is_rejected(plc: ArmControllerClient) -> None:
     before = plc.move_xyz(150.0, 0.0, 130.0)
     words = plc.channel_words()
-    for code in (0, 5, 99, -1, 65536):
+    for code in (0, 7, 99, -1, 65536):
         _rejected(plc, before, plc.command(code, xyz=(1.0, 2.0, 3.0)), words,
                   ERR_UNKNOWN_COMMAND)
 
@@ -111,11 +121,12 @@ def _datasheet_count(pulse_us: float) -> int:
                                     (12.5, 81.25, 40.0), (-33.3, 55.5, 99.9)])
 def test_pwm_counts_match_datasheet(plc: ArmControllerClient,
                                    joints: tuple[float, float, float]) -> None:
+    zero = [c.zero_offset_deg for c in plc.calibration()]  # read back, not duplicated
     st = plc.move_joints(*joints)
     assert st.error_id == 0
     words = plc.channel_words()
-    for ch, (angle, zero) in enumerate(zip(joints, ZERO_DEG, strict=True)):
-        pulse_us = 1500.0 + (angle - zero) * 1000.0 / 120.0  # MG996R: 1..2 ms = -60..+60 deg
+    for ch, angle in enumerate(joints):
+        pulse_us = 1500.0 + (angle - zero[ch]) * 1000.0 / 120.0  # MG996R: 1..2 ms = -60..+60
         assert st.pulses_us[ch] == pytest.approx(pulse_us, abs=1e-3)
         assert words[ch] == _datasheet_count(pulse_us), (ch, pulse_us)
     assert words[3:] == [0x1000] * 13  # unused channels fully off
@@ -129,8 +140,126 @@ def test_relax_turns_all_channels_off(plc: ArmControllerClient) -> None:
 
 
 def test_init_pwm_publishes_the_datasheet_sequence(plc: ArmControllerClient) -> None:
-    st = plc.init_pwm()
+    request = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address)
+    assert request == [False]
+    seq = plc.submit(CMD_INIT_PWM)
+    seen = False
+    deadline = time.monotonic() + 2.0
+    while not seen and plc.ack_seq() != seq and time.monotonic() < deadline:
+        seen = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [True]
+    assert seen, "PwmInitRequest (%QX0.0, the PSM's init request) never rose"
+    st = plc.wait_ack(seq)
+    assert plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [False]
     assert st.error_id == 0 and st.pwm_ready and st.prescale == PRESCALE
     assert st.init_frames == 5
     assert plc.init_frames() == [(0x00, 0x11), (0xFE, PRESCALE), (0x01, 0x04), (0x00, 0x01),
                                  (0x00, 0xA1)]
+
+
+# -- SetCalibration ----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def restore_calibration(plc: ArmControllerClient) -> Iterator[None]:
+    saved = plc.calibration()
+    yield
+    for joint, cal in enumerate(saved):
+        assert plc.set_calibration(joint, cal).error_id == 0
+
+
+def test_calibration_reads_back_mg996r_defaults(plc: ArmControllerClient) -> None:
+    for cal in plc.calibration():
+        assert (cal.direction, cal.min_pulse_us, cal.max_pulse_us) == (1, 1000.0, 2000.0)
+        assert (cal.min_angle_deg, cal.max_angle_deg) == (-60.0, 60.0)
+
+
+@pytest.mark.usefixtures("restore_calibration")
+def test_set_calibration_changes_the_pulses(plc: ArmControllerClient) -> None:
+    # reversed elbow, 10 deg more offset, narrower travel at the same scale
+    cal = Calibration(zero_offset_deg=plc.calibration()[2].zero_offset_deg + 10.0, direction=-1,
+                      min_pulse_us=1125.0, max_pulse_us=1875.0, min_angle_deg=-45.0,
+                      max_angle_deg=45.0)
+    st = plc.set_calibration(2, cal)
+    assert st.error_id == 0
+    assert plc.calibration()[2] == cal
+    st = plc.move_joints(0.0, 70.0, cal.zero_offset_deg - 12.0)
+    assert st.error_id == 0
+    assert st.pulses_us[2] == pytest.approx(1500.0 + 12.0 * 1000.0 / 120.0, abs=1e-3)
+    st = plc.move_joints(0.0, 70.0, cal.zero_offset_deg - 46.0)  # 46 deg > the new 45 deg travel
+    assert st.error_id == ERR_JOINT_LIMIT
+
+
+@pytest.mark.parametrize(("joint", "cal", "code"), [
+    (0, Calibration(min_angle_deg=60.0, max_angle_deg=-60.0), ERR_BAD_CALIBRATION),
+    (1, Calibration(min_pulse_us=2000.0, max_pulse_us=1000.0), ERR_BAD_CALIBRATION),
+    (2, Calibration(max_pulse_us=25000.0), ERR_BAD_CALIBRATION),
+    (0, Calibration(direction=0), ERR_BAD_CALIBRATION),
+    (1, Calibration(zero_offset_deg=math.nan), ERR_NOT_FINITE),
+    (3, Calibration(), ERR_BAD_JOINT),
+    (-1, Calibration(), ERR_BAD_JOINT),
+])
+def test_bad_calibration_is_rejected(plc: ArmControllerClient, joint: int, cal: Calibration,
+                                     code: int) -> None:
+    before = plc.move_joints(5.0, 75.0, 60.0)
+    cals = plc.calibration()
+    words = plc.channel_words()
+    after = plc.set_calibration(joint, cal)
+    _rejected(plc, before, after, words, code)
+    assert plc.calibration() == cals
+
+
+# -- SolveBatch --------------------------------------------------------------------------------
+
+
+def test_batch_fk_of_ik_over_1000_points(plc: ArmControllerClient) -> None:
+    targets = _targets(1000)
+    scans_before = plc.status().scan_count
+    results = plc.batch_roundtrip(targets)
+    assert len(results) == len(targets)
+    assert all(r.error_id == 0 for r in results), [r for r in results if r.error_id][:3]
+    want = np.array(targets)
+    ref = arm.forward_batch(np.array([r.joints_deg for r in results]))  # numpy reference FK
+    echo = np.array([r.echo_mm for r in results])
+    assert np.max(np.linalg.norm(ref - want, axis=1)) <= 0.05
+    assert np.max(np.linalg.norm(echo - want, axis=1)) <= 0.05
+    # each SolveBatch is one command: about one scan per 32 points, not one per point
+    batches = math.ceil(len(targets) / plc.batch_max)
+    assert plc.status().scan_count - scans_before < 3 * batches + 5
+
+
+def test_batch_matches_single_moves(plc: ArmControllerClient) -> None:
+    targets = _targets(7)
+    batch = plc.solve_batch(targets)
+    for p, r in zip(targets, batch, strict=True):
+        st = plc.move_xyz(*p)
+        assert (r.joints_deg, r.echo_mm, r.error_id) == (st.joints_deg, st.echo_mm, 0)
+
+
+def test_batch_reports_each_points_error_and_moves_nothing(plc: ArmControllerClient) -> None:
+    before = plc.move_xyz(150.0, 0.0, 120.0)
+    words = plc.channel_words()
+    targets = [(150.0, 10.0, 120.0), (1000.0, 0.0, 120.0), (math.nan, 0.0, 0.0),
+               (150.0, -10.0, 120.0)]
+    res = plc.solve_batch(targets)
+    assert [r.error_id for r in res] == [0, ERR_UNREACHABLE, ERR_NOT_FINITE, 0]
+    assert res[1].joints_deg == res[1].echo_mm == (0.0, 0.0, 0.0)
+    st = plc.status()
+    assert (st.batch_count, st.batch_failures) == (4, 2)
+    assert st.joints_deg == before.joints_deg and plc.channel_words() == words
+    # points beyond the count are cleared
+    full = plc.batch_results(plc.batch_max)
+    assert all(r == full[-1] for r in full[4:]) and full[-1].echo_mm == (0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("count", [0, -1, 33, 1000])
+def test_batch_bad_count_is_rejected(plc: ArmControllerClient, count: int) -> None:
+    before = plc.move_xyz(150.0, 5.0, 120.0)
+    plc.solve_batch([(150.0, 0.0, 120.0)])
+    st_before = plc.status()
+    results = plc.batch_results(1)
+    words = plc.channel_words()
+    after = plc.command(CMD_SOLVE_BATCH, count=count)
+    _rejected(plc, before, after, words, ERR_BAD_COUNT)
+    assert (after.batch_count, after.batch_failures) == (st_before.batch_count,
+                                                         st_before.batch_failures)
+    assert plc.batch_results(1) == results

@@ -23,7 +23,41 @@ def test_addresses_follow_openplc_map() -> None:
     regs = registermap.controller_map()
     assert regs["CMDSEQ"].address == 2048 and regs["CMDSEQ"].count == 2
     assert regs["CMDX"].address == 2048 + 2 * 2
+    assert regs["ACKSEQ"].address == 2048 + 2 * 32
+    assert regs["PWMINITREQUEST"].table == "coil" and regs["PWMINITREQUEST"].address == 0
+    assert regs["PWMDRIVERFAULT"].table == "discrete" and regs["PWMDRIVERFAULT"].address == 1
     assert regs["INITREG1"].address == 1024
     assert regs["CH15OFF"].address == 15
     assert registermap.modbus_location("%QX2.5") == ("coil", 21, 1)
     assert registermap.modbus_location("%ML1") == ("holding", 4100, 4)
+
+
+def test_batch_blocks_are_regular_and_match_the_program() -> None:
+    """The SolveBatch declarations were written out by a script: check the pattern held."""
+    regs = registermap.controller_map()
+    n = sum(1 for name in regs if name.startswith("BATCHX"))
+    source = registermap.CONTROLLER.read_text(encoding="utf-8")
+    assert f"BatchMax : DINT := {n};" in source
+    assert f"BatchIn : ARRAY[1..{n}] OF Coordinates;" in source
+    assert f"BatchOut : ARRAY[1..{n}] OF ArmPointResult;" in source
+    first_target = regs["BATCHX01"].address
+    first_result = regs["RESBASE01"].address
+    for k in range(1, n + 1):
+        for j, axis in enumerate("XYZ"):
+            r = regs[f"BATCH{axis}{k:02d}"]
+            assert (r.st_type, r.address) == ("REAL", first_target + 6 * (k - 1) + 2 * j)
+            assert f"BatchIn[{k}].{axis} := Batch{axis}{k:02d};" in source
+        for j, field in enumerate(("BASE", "SHOULDER", "ELBOW", "X", "Y", "Z", "ERRORID")):
+            r = regs[f"RES{field}{k:02d}"]
+            assert r.address == first_result + 14 * (k - 1) + 2 * j
+        assert f"ResErrorId{k:02d} := BatchOut[{k}].ErrorId;" in source
+    assert first_target + 6 * n <= first_result  # targets and results do not overlap
+
+
+def test_psm_handshake_bits_are_where_the_psm_sees_them() -> None:
+    regs = registermap.controller_map()
+    # OpenPLC's PSM exchanges %IX/%QX 0.0..49.7 and %IW/%QW 0..49 only
+    assert regs["PWMINITREQUEST"].location == "%QX0.0"
+    assert regs["PWMDRIVERREADY"].location == "%IX0.0"
+    assert regs["PWMDRIVERFAULT"].location == "%IX0.1"
+    assert [regs[f"CH{n:02d}OFF"].location for n in range(16)] == [f"%QW{n}" for n in range(16)]

@@ -254,3 +254,19 @@ def test_model_catches_a_driver_that_skips_the_oscillator_wait() -> None:
     with pytest.raises(PCA9685TimingError, match="500 us"):
         driver.initialise()
     assert chip.restart_pending
+
+
+def test_psm_variables_are_the_controllers_located_variables() -> None:
+    """The PSM's names are Controller.st's locations (register map derived from the program)."""
+    from armbench.registermap import controller_map
+
+    regs = controller_map()
+    assert [f"%{v}" for v in psm_mod.CHANNEL_VARS] == [
+        regs[f"CH{n:02d}OFF"].location for n in range(16)
+    ]
+    assert f"%{psm_mod.INIT_REQUEST_VAR}" == regs["PWMINITREQUEST"].location
+    assert f"%{psm_mod.READY_VAR}" == regs["PWMDRIVERREADY"].location
+    assert f"%{psm_mod.FAULT_VAR}" == regs["PWMDRIVERFAULT"].location
+    for name in ("PWMINITREQUEST", "PWMDRIVERREADY", "PWMDRIVERFAULT", "CH15OFF"):
+        # what the PSM can exchange with the runtime: %QX/%IX bytes 0..49, %QW/%IW 0..49
+        assert regs[name].address < (400 if regs[name].table in ("coil", "discrete") else 50)
