@@ -202,7 +202,7 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
               f"max {s.execution.max_ns / 1e3:.1f} us, jitter p50 {s.jitter.p50_ns / 1e3:.1f} us "
               f"p99 {s.jitter.p99_ns / 1e3:.1f} us max {s.jitter.max_ns / 1e3:.1f} us\n")
     if out_dir is not None and rec_cmd:
-        from .plots import demo_plots  # matplotlib is imported only when plotting
+        from .plots.demo import demo_plots  # matplotlib is imported only when plotting
 
         for path in demo_plots(out_dir, rec_cmd, rec_ach, rec_joints, rec_ach_joints,
                                rec_pulses, rec_counts):

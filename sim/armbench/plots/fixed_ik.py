@@ -4,10 +4,10 @@ Runs InverseKinematikFixed (through the bench's ST compiler) over a grid of inte
 in the arm's vertical plane and over random 3-D targets, compares with the float64 reference
 ``armbench.plant.arm.inverse`` at the same targets, and writes PNGs for docs/fixed-point.md:
 
-    python -m armbench.fixedplots            # docs/figures/fixed-ik-error-*.png
-    python -m armbench.fixedplots --out DIR
+    python -m armbench.plots.fixed_ik            # docs/figures/fixed-ik-error-*.png
+    python -m armbench.plots.fixed_ik --out DIR
 
-The only module of the fixed-point work that imports matplotlib.
+Part of the plots package, the only one that imports matplotlib.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def random_errors(module: Any, count: int = 10_000, seed: int = 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.fixedplots")
+    parser = argparse.ArgumentParser(prog="python -m armbench.plots.fixed_ik")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "figures")
     args = parser.parse_args(argv)
 
