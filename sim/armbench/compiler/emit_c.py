@@ -187,6 +187,8 @@ class Emitter:
             out.append(f"{self.pou_cname(sym) if not sym.builtin else self.ctype(t)}"
                        f"_init(&{target});")
             return
+        if isinstance(t, ArrayType | StructType) and init is None and t.default is not None:
+            init = t.default  # type: ignore[assignment]
         if isinstance(t, StructType):
             for fk, (_, ft) in t.fields.items():
                 finit = None

@@ -162,6 +162,10 @@ class Lowerer:
         raise _Unsupported(node, t.replace("_", " "))
 
     def init(self, nodes: list[ts.Node]) -> A.Init:
+        if len(nodes) == 1 and nodes[0].type == "index_expression":
+            obj = nodes[0].child_by_field_name("object")
+            if obj is not None and obj.is_missing:
+                return self.default_array_init(nodes[0])
         if len(nodes) == 1 and nodes[0].type not in ("array_repetition",):
             n = nodes[0]
             if n.type == "structure_initializer":
@@ -181,6 +185,21 @@ class Lowerer:
             else:
                 items.append((None, self.expr(n)))
         return A.ArrayInit(self.pos(nodes[0]), items)
+
+    def default_array_init(self, node: ts.Node) -> A.ArrayInit:
+        """`[a, n(b), ...]` as a TYPE/field default (see parse.is_array_default_hole)."""
+        items: list[tuple[A.Expr | None, A.Init]] = []
+        for i in self.fields(node, "index"):
+            fn = i.child_by_field_name("function") if i.type == "call_expression" else None
+            if fn is not None and fn.type == "integer_literal":
+                args = i.child_by_field_name("arguments")
+                vals = self.named(args) if args is not None else []
+                if len(vals) != 1:
+                    raise _Unsupported(i, "repetition n(v) needs exactly one value")
+                items.append((self.expr(fn), self.expr(vals[0])))
+            else:
+                items.append((None, self.expr(i)))
+        return A.ArrayInit(self.pos(node), items)
 
     def struct_init(self, node: ts.Node) -> A.StructInit:
         fields: list[tuple[str, A.Init]] = []

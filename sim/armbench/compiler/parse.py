@@ -90,6 +90,8 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
     stack = [pf.tree.root_node]
     while stack:
         node = stack.pop()
+        if node.is_missing and is_array_default_hole(node):
+            continue
         if node.is_missing:
             before = pf.data[:node.start_byte].decode("utf-8", "replace").rstrip().upper()
             if node.type == ";" and before.endswith("END_STRUCT"):
@@ -103,6 +105,19 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
             continue
         if node.has_error:
             stack.extend(reversed(node.children))
+
+
+def is_array_default_hole(node: ts.Node) -> bool:
+    """The grammar has no array initialiser in a TYPE or STRUCT field default
+    (`T : ARRAY[0..2] OF INT := [1, 2, 3];`): it reads `[...]` as an index expression on a
+    missing name. That shape is valid ST; the lowering turns it into an array initialiser."""
+    parent = node.parent
+    if parent is None or parent.type != "index_expression":
+        return False
+    if parent.child_by_field_name("object") != node:
+        return False
+    owner = parent.parent
+    return owner is not None and owner.type in ("type_definition", "structure_field")
 
 
 def _describe_error(pf: ParsedFile, node: ts.Node) -> str:

@@ -150,10 +150,13 @@ class Checker:
             elif isinstance(t, EnumType):
                 self.d.error(init.pos, "E0300", f"the default of {t.name} must be one of its "
                              "values")
+            elif isinstance(t, ArrayType | StructType):
+                self.check_init(init, t)
+                t.default = init
             else:
                 self.d.error(init.pos, "E0105", "unsupported construct: a default value on "
-                             "a derived type other than an enumeration (give the variables "
-                             "initial values instead)")
+                             "an alias of an elementary type (give the variables initial "
+                             "values instead)")
         return t
 
     def type_from_ref(self, ref: A.TypeRef, seen: set[str] | None = None,

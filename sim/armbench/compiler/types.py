@@ -84,6 +84,7 @@ class ArrayType(Type):
     dims: list[tuple[int, int]]
     element: Type
     name: str = ""
+    default: object = None  # ast Init of `TYPE T : ARRAY[..] OF X := [...]; END_TYPE`
 
     def __post_init__(self) -> None:
         if not self.name:
@@ -106,6 +107,7 @@ class StructType(Type):
     name: str
     fields: dict[str, tuple[str, Type]] = field(default_factory=dict)  # UPPER -> (spelling, t)
     inits: dict[str, object] = field(default_factory=dict)  # UPPER -> ast Init
+    default: object = None  # ast StructInit of `TYPE S : STRUCT ... END_STRUCT := (...)`
 
 
 @dataclass(eq=False)
