@@ -45,39 +45,39 @@ static __attribute__((noinline, cold)) void plc__wd_check(const char *pos) {
 #define PLC__WD(pos) do { if (__builtin_expect((++plc__wd_count & 0xFFFFu) == 0u, 0)) plc__wd_check(pos); } while (0)
 #endif
 
-static inline int32_t plc__idx(int64_t i, int64_t lo, int64_t hi, const char *pos) {
+static inline __attribute__((always_inline)) int32_t plc__idx(int64_t i, int64_t lo, int64_t hi, const char *pos) {
     if (__builtin_expect(i < lo || i > hi, 0)) plc__fault(pos, "array index out of bounds");
     return (int32_t)(i - lo);
 }
-static inline int64_t plc__div_s(int64_t a, int64_t b, const char *pos) {
+static inline __attribute__((always_inline)) int64_t plc__div_s(int64_t a, int64_t b, const char *pos) {
     if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
     if (b == -1) return (int64_t)(0 - (uint64_t)a);  /* INT64_MIN / -1 wraps */
     return a / b;
 }
-static inline uint64_t plc__div_u(uint64_t a, uint64_t b, const char *pos) {
+static inline __attribute__((always_inline)) uint64_t plc__div_u(uint64_t a, uint64_t b, const char *pos) {
     if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
     return a / b;
 }
-static inline int64_t plc__mod_s(int64_t a, int64_t b) {
+static inline __attribute__((always_inline)) int64_t plc__mod_s(int64_t a, int64_t b) {
     if (b == 0 || b == -1) return 0;  /* MatIEC: x MOD 0 = 0 */
     return a % b;
 }
-static inline uint64_t plc__mod_u(uint64_t a, uint64_t b) { return b == 0 ? 0 : a % b; }
-static inline int64_t plc__r2i(double x) { return (int64_t)nearbyint(x); } /* half to even */
-static inline uint64_t plc__r2u(double x) { return x < 0.0 ? 0u : (uint64_t)(int64_t)nearbyint(x); }
-static inline uint64_t plc__shl(uint64_t v, int64_t n, int bits) {
+static inline __attribute__((always_inline)) uint64_t plc__mod_u(uint64_t a, uint64_t b) { return b == 0 ? 0 : a % b; }
+static inline __attribute__((always_inline)) int64_t plc__r2i(double x) { return (int64_t)nearbyint(x); } /* half to even */
+static inline __attribute__((always_inline)) uint64_t plc__r2u(double x) { return x < 0.0 ? 0u : (uint64_t)(int64_t)nearbyint(x); }
+static inline __attribute__((always_inline)) uint64_t plc__shl(uint64_t v, int64_t n, int bits) {
     return (n < 0 || n >= bits) ? 0u : (v << n);
 }
-static inline uint64_t plc__shr(uint64_t v, int64_t n, int bits) {
+static inline __attribute__((always_inline)) uint64_t plc__shr(uint64_t v, int64_t n, int bits) {
     return (n < 0 || n >= bits) ? 0u : (v >> n);
 }
-static inline uint64_t plc__rol(uint64_t v, int64_t n, int bits) {
+static inline __attribute__((always_inline)) uint64_t plc__rol(uint64_t v, int64_t n, int bits) {
     uint64_t mask = bits == 64 ? ~0ull : ((1ull << bits) - 1u);
     n %= bits; v &= mask;
     if (n == 0) return v;
     return ((v << n) | (v >> (bits - n))) & mask;
 }
-static inline uint64_t plc__ror(uint64_t v, int64_t n, int bits) {
+static inline __attribute__((always_inline)) uint64_t plc__ror(uint64_t v, int64_t n, int bits) {
     n %= bits;
     return plc__rol(v, n == 0 ? 0 : bits - n, bits);
 }
