@@ -27,7 +27,7 @@ import re
 from pathlib import Path
 
 import pytest
-from st_corpus import DIAGNOSTICS, MATIEC_HELP, SEMANTICS, find_matiec
+from st_corpus import DIAGNOSTICS, SEMANTICS
 
 from armbench.compiler import check_files
 from armbench.compiler.diagnostics import CODES
@@ -101,14 +101,6 @@ def test_semantics_corpus_is_clean() -> None:
 
 
 # ------------------------------------------------------------------ MatIEC cross-check
-@pytest.fixture(scope="module")
-def matiec():  # type: ignore[no-untyped-def]
-    m = find_matiec()
-    if m is None:
-        pytest.skip(MATIEC_HELP)
-    return m
-
-
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES])
 def test_matiec_rejects(matiec, path: Path) -> None:  # type: ignore[no-untyped-def]
     accepted, c_stage, out = matiec.verdict(path)

@@ -27,12 +27,10 @@ from pathlib import Path
 import pytest
 from st_corpus import (
     INSTANCE,
-    MATIEC_HELP,
     SEMANTICS,
     c_expr,
     compare,
     f32,
-    find_matiec,
     instance_types,
     parse_checks,
     parse_matiec_value,
@@ -94,14 +92,6 @@ def test_semantics(path: Path) -> None:
         if msg:
             failures.append(msg)
     assert not failures, f"{path.name}:\n  " + "\n  ".join(failures)
-
-
-@pytest.fixture(scope="module")
-def matiec():  # type: ignore[no-untyped-def]
-    m = find_matiec()
-    if m is None:
-        pytest.skip(MATIEC_HELP)
-    return m
 
 
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES])
