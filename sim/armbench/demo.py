@@ -17,9 +17,9 @@ import argparse
 import math
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
@@ -115,12 +115,82 @@ def _bar(done: int, total: int, width: int = 40) -> str:
     return f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total}"
 
 
+@dataclass
+class PathRun:
+    """What driving a path through PLC and plant gave, point by point."""
+
+    commanded: list[tuple[float, float, float]] = field(default_factory=list)
+    achieved: list[tuple[float, float, float]] = field(default_factory=list)
+    echo: list[tuple[float, float, float]] = field(default_factory=list)
+    joints: list[tuple[float, float, float]] = field(default_factory=list)
+    achieved_joints: list[tuple[float, float, float]] = field(default_factory=list)
+    pulses: list[tuple[float, float, float]] = field(default_factory=list)
+    counts: list[tuple[float, float, float]] = field(default_factory=list)
+    rejected: int = 0
+    elapsed_s: float = 0.0
+
+    def errors_mm(self) -> list[float]:
+        return [math.dist(c, a) for c, a in zip(self.commanded, self.achieved, strict=True)]
+
+    def echo_errors_mm(self) -> list[float]:
+        return [math.dist(c, e) for c, e in zip(self.commanded, self.echo, strict=True)]
+
+
+def drive_path(ctl: ArmControllerClient, plant: Plant,
+               points: Sequence[tuple[float, float, float]],
+               progress: Callable[[int, int], None] | None = None) -> PathRun:
+    """One MoveXyz per point (handshake), then the plant: PCA9685 words -> pulses -> servo
+    angles -> reference FK. Rejected points are counted and skipped."""
+    run = PathRun()
+    t_start = time.perf_counter()
+    for i, p in enumerate(points, start=1):
+        st = ctl.move_xyz(*p)
+        if st.error_id != 0:
+            run.rejected += 1
+            continue
+        words = ctl.channel_words()
+        joints = plant.drive(words)
+        fk = arm.forward(*joints)
+        run.commanded.append(p)
+        run.achieved.append((float(fk[0]), float(fk[1]), float(fk[2])))
+        run.echo.append(st.echo_mm)
+        run.joints.append(st.joints_deg)
+        run.achieved_joints.append(joints)
+        run.pulses.append(st.pulses_us)
+        run.counts.append((words[0] & 0xFFF, words[1] & 0xFFF, words[2] & 0xFFF))
+        if progress is not None:
+            progress(i, len(points))
+    run.elapsed_s = time.perf_counter() - t_start
+    return run
+
+
+def start_plant(ctl: ArmControllerClient) -> tuple[Plant, int]:
+    """Read the calibration back, initialise the PCA9685 over Modbus and in the model.
+    Returns the plant and the PLC's prescale (or raises with the PLC's ErrorId)."""
+    plant = Plant(ctl.calibration())
+    st = ctl.init_pwm()
+    if st.error_id != 0:
+        raise RuntimeError(f"PCA9685 init failed: ErrorId {st.error_id}")
+    plant.apply_init_frames(ctl.init_frames())
+    return plant, st.prescale
+
+
 def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
         centre: tuple[float, float, float] = (150.0, 0.0, 120.0),
         out: TextIO | None = None, out_dir: Path | None = DEFAULT_OUT,
         poll_ms: float = 0.5) -> int:
     stream = out if out is not None else sys.stdout
     write = stream.write
+
+    tty = stream.isatty()
+
+    def progress(done: int, total: int) -> None:
+        if tty and (done % 4 == 0 or done == total):
+            write(_bar(done, total))
+            stream.flush()
+        elif not tty and (done * 4 // total > (done - 1) * 4 // total):
+            write(f"{done}/{total} points\n")  # a log gets a few lines, not a redrawn bar
+
     t0 = time.perf_counter()
     with serve_controller() as running:
         compile_s = time.perf_counter() - t0
@@ -128,19 +198,18 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
               f"compile+load {compile_s:.2f} s\n")
         with PlcClient(running.host, running.port) as modbus:
             ctl = ArmControllerClient(modbus, poll_interval_s=poll_ms / 1000.0)
-            cals = ctl.calibration()
+            try:
+                plant, prescale = start_plant(ctl)
+            except RuntimeError as exc:
+                write(f"{exc}\n")
+                return 1
             write("servo calibration (read back): " + "; ".join(
                 f"{name} zero {c.zero_offset_deg:g} deg dir {c.direction:+d} "
                 f"{c.min_pulse_us:g}..{c.max_pulse_us:g} us = "
                 f"{c.min_angle_deg:g}..{c.max_angle_deg:g} deg"
-                for name, c in zip(("Base", "Shoulder", "Elbow"), cals, strict=True)) + "\n")
-            plant = Plant(cals)
-            st = ctl.init_pwm()
-            if st.error_id != 0:
-                write(f"PCA9685 init failed: ErrorId {st.error_id}\n")
-                return 1
-            plant.apply_init_frames(ctl.init_frames())
-            write(f"PCA9685 initialised: prescale {st.prescale}, "
+                for name, c in zip(("Base", "Shoulder", "Elbow"), plant.calibration,
+                                   strict=True)) + "\n")
+            write(f"PCA9685 initialised: prescale {prescale}, "
                   f"{plant.pca.update_rate_hz:.2f} Hz, running={plant.pca.running}\n")
             pts = circle(points, centre, radius, plane)
             tb = time.perf_counter()
@@ -154,46 +223,19 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
                   f"{unreachable} rejected, max |commanded - FK echo| {batch_echo:.5f} mm\n")
             running.plc.reset_stats()
             ctl.polls = 0
-            errs: list[float] = []
-            echo_errs: list[float] = []
-            rec_cmd: list[tuple[float, float, float]] = []
-            rec_ach: list[tuple[float, float, float]] = []
-            rec_joints: list[tuple[float, float, float]] = []
-            rec_ach_joints: list[tuple[float, float, float]] = []
-            rec_pulses: list[tuple[float, float, float]] = []
-            rec_counts: list[tuple[float, float, float]] = []
-            failures = 0
-            t_start = time.perf_counter()
-            for i, p in enumerate(pts, start=1):
-                st = ctl.move_xyz(*p)
-                if st.error_id != 0:
-                    failures += 1
-                    continue
-                words = ctl.channel_words()
-                joints = plant.drive(words)
-                fk = arm.forward(*joints)
-                achieved = (float(fk[0]), float(fk[1]), float(fk[2]))
-                errs.append(math.dist(p, achieved))
-                echo_errs.append(math.dist(p, st.echo_mm))
-                rec_cmd.append(p)
-                rec_ach.append(achieved)
-                rec_joints.append(st.joints_deg)
-                rec_ach_joints.append(joints)
-                rec_pulses.append(st.pulses_us)
-                rec_counts.append((words[0] & 0xFFF, words[1] & 0xFFF, words[2] & 0xFFF))
-                if i % 4 == 0 or i == points:
-                    write(_bar(i, points))
-                    stream.flush()
-            elapsed = time.perf_counter() - t_start
-            write("\n")
+            result = drive_path(ctl, plant, pts, progress)
+            if tty:
+                write("\n")
             stats = running.plc.stats()
+    errs = result.errors_mm()
+    echo_errs = result.echo_errors_mm()
     write(f"points: {points} on a circle centre {centre} mm radius {radius} mm, plane {plane}; "
-          f"rejected: {failures}\n")
+          f"rejected: {result.rejected}\n")
     if errs:
         write(f"|commanded - achieved| (PWM + servo + reference FK): "
               f"max {max(errs):.3f} mm, mean {sum(errs) / len(errs):.3f} mm\n")
         write(f"|commanded - FK echo| (PLC REAL arithmetic): max {max(echo_errs):.5f} mm\n")
-    write(f"throughput: {points / elapsed:.1f} points/s ({elapsed:.2f} s, "
+    write(f"throughput: {points / result.elapsed_s:.1f} points/s ({result.elapsed_s:.2f} s, "
           f"{ctl.polls} AckSeq polls, poll interval {poll_ms:g} ms); "
           f"simulated servo settle time {plant.settle_s:.1f} s\n")
     for s in stats.values():
@@ -201,13 +243,13 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
               f"overruns {s.overruns}, execution mean {s.execution.mean_ns / 1e3:.1f} us "
               f"max {s.execution.max_ns / 1e3:.1f} us, jitter p50 {s.jitter.p50_ns / 1e3:.1f} us "
               f"p99 {s.jitter.p99_ns / 1e3:.1f} us max {s.jitter.max_ns / 1e3:.1f} us\n")
-    if out_dir is not None and rec_cmd:
+    if out_dir is not None and result.commanded:
         from .plots.demo import demo_plots  # matplotlib is imported only when plotting
 
-        for path in demo_plots(out_dir, rec_cmd, rec_ach, rec_joints, rec_ach_joints,
-                               rec_pulses, rec_counts):
+        for path in demo_plots(out_dir, result.commanded, result.achieved, result.joints,
+                               result.achieved_joints, result.pulses, result.counts):
             write(f"plot: {path}\n")
-    ok = (failures == 0 and unreachable == 0 and bool(errs) and max(echo_errs) <= 0.05
+    ok = (result.rejected == 0 and unreachable == 0 and bool(errs) and max(echo_errs) <= 0.05
           and batch_echo <= 0.05)
     return 0 if ok else 1
 
