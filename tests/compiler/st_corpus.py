@@ -213,8 +213,9 @@ def instance_types(mod_or_prog: Any, instance: str = INSTANCE) -> dict[str, Any]
 
 
 # ------------------------------------------------------------------ the real MatIEC
-MATIEC_HELP = ("no real iec2c: set IEC2C=/path/to/iec2c or MATIEC_CHECK=/path/to/check-st.sh "
-               "(e.g. /opt/matiec-check/check-st.sh) to cross-check")
+MATIEC_HELP = ("no real iec2c (none on PATH): set IEC2C=/path/to/iec2c or "
+               "MATIEC_CHECK=/path/to/check-st.sh (e.g. /opt/matiec-check/check-st.sh) to "
+               "cross-check")
 
 
 @dataclass(frozen=True)
@@ -252,7 +253,8 @@ class Matiec:
 
 
 def find_matiec() -> Matiec | None:
-    """MATIEC_CHECK (a check-st.sh; run-st.sh next to it also runs programs) or IEC2C.
+    """MATIEC_CHECK (a check-st.sh; run-st.sh next to it also runs programs), IEC2C, or an
+    iec2c on PATH.
 
     IEC2C=/path/to/iec2c only checks iec2c's verdict; its standard library is taken from
     IEC2C_LIB, else a `lib` dir beside or above the binary (MatIEC looks for ./lib)."""
@@ -263,7 +265,7 @@ def find_matiec() -> Matiec | None:
             return None
         run = Path(os.environ.get("MATIEC_RUN", cp.with_name("run-st.sh")))
         return Matiec(cp, run if run.is_file() else None, None, None)
-    iec2c = os.environ.get("IEC2C")
+    iec2c = os.environ.get("IEC2C") or shutil.which("iec2c")
     if iec2c and Path(iec2c).is_file():
         ip = Path(iec2c).resolve()
         lib = os.environ.get("IEC2C_LIB")
