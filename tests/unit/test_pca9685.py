@@ -187,12 +187,9 @@ def test_init_frames_byte_for_byte(st_module: Any) -> None:
 
 
 def test_init_block_sequence_and_wake_delay(st_module: Any) -> None:
-    lib = getattr(st_module, "lib", None)
-    if lib is None or not hasattr(lib, "plc_set_time"):
-        pytest.skip("the compiled module exposes no PLC clock")
     fb = st_module.new_fb("PCA9685_Init")
     now_ns = 1_000_000_000
-    lib.plc_set_time(now_ns)
+    st_module.set_time(now_ns)
     sent: list[tuple[int, int, int]] = []
     sent_at: list[int] = []
     for _ in range(40):
@@ -204,7 +201,7 @@ def test_init_block_sequence_and_wake_delay(st_module: Any) -> None:
         if fb.Done:
             break
         now_ns += 200_000  # 0.2 ms scans
-        lib.plc_set_time(now_ns)
+        st_module.set_time(now_ns)
     assert fb.Done and not fb.Busy and not fb.Error
     assert fb.Prescale == 121
     assert [(r, v) for r, v, _ in sent] == [(r, v) for r, v, _ in expected_init_frames(121)]

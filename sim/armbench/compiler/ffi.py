@@ -285,5 +285,10 @@ class Module:
                 return Instance(self, inst.pou, c)
         raise KeyError(f"no program instance {name!r} in {cfg.name}")
 
+    def set_time(self, ns: int) -> None:
+        """Set the PLC clock (ns) that TON/TOF/TP read: lets tests drive timers through the
+        Python API without waiting (the soft PLC sets it before every scan)."""
+        self.lib.plc_set_time(ns)
+
     def set_watchdog(self, ns: int) -> None:
         self.lib.plc_set_watchdog(ns)

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from armbench.plant import arm
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 ST = REPO / "st"
 SOURCES = [ST / "ArmAngles.st", ST / "Kinematics.st", ST / "KinematicsFixed.st",
            ST / "KinematicsFixedTables.st"]
