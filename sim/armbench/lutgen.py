@@ -1,6 +1,6 @@
 """Generator of st/KinematicsFixedTables.st: the trig tables of the integer-only kinematics.
 
-Two tables of 257 UINT entries (514 bytes each, 1,028 bytes in all), both stored as the
+Three tables of 257 UINT entries (514 bytes each, 1,542 bytes in all), each stored as the
 *residual* of the function over its straight chord, so that the 16 bits of a UINT hold more
 precision than the function value itself would:
 
@@ -14,9 +14,16 @@ precision than the function value itself would:
     entry[i] = round(atan(x) in units of 1.0E-4 deg - x * 450,000)   (0 .. 40,752)
     atan(x) = 450,000 * x + residual(x)                  (the chord runs 0 -> 45 deg)
 
-Both residuals are >= 0 (sine and arc tangent are concave on these ranges) and 0 at both
-ends. The ST code adds the chord back in exact integer arithmetic and interpolates the
-residual linearly (KinematicsFixed.st documents the error budget).
+``RsqrtTableFixed`` -- reciprocal square root on [1, 2], ``x = 1 + i / 256``::
+
+    entry[i] = round(2**20 - i * 307,121 / 256 - 2**20 / sqrt(x))   (0 .. 39,651; Q20 units)
+    2**20 / sqrt(x) = chord(x) - residual(x)   (the chord runs 2**20 -> 2**20 - 307,121,
+                                                307,121 = 2**20 - round(2**20 / sqrt(2)))
+
+All residuals are >= 0 (sine and arc tangent are concave, the reciprocal square root is
+convex on these ranges) and 0 at both ends. The ST code adds the chord back in exact integer
+arithmetic and interpolates the residual linearly (KinematicsFixed.st documents the error
+budget).
 
 The output is byte-for-byte reproducible: no time stamps, fixed formatting, and every entry is
 checked to lie at least 1.0E-6 units away from a rounding tie, so a libm that differs in the
@@ -44,6 +51,8 @@ SEGMENTS = 256  # table intervals; entries = SEGMENTS + 1
 SIN_SCALE = 1 << 18  # Q18: sin = 1.0 is 262,144
 ATAN_UNITS_PER_DEG = 10_000  # arc tangent in 1.0E-4 deg
 ATAN_CHORD_END = 45 * ATAN_UNITS_PER_DEG  # atan(1) = 45 deg = 450,000 units
+RSQRT_SCALE = 1 << 20  # Q20: 1 / sqrt(1) = 1.0 is 1,048,576
+RSQRT_CHORD_DROP = RSQRT_SCALE - round(RSQRT_SCALE / math.sqrt(2.0))  # 307,121
 UINT_MAX = 0xFFFF
 UINT_BYTES = 2
 TIE_MARGIN = 1.0e-6  # minimum distance of an unrounded entry from x.5
@@ -100,8 +109,19 @@ def atan_table() -> Table:
                  "1.0E-4 deg", entries)
 
 
+def rsqrt_table() -> Table:
+    """Reciprocal square root residual under its chord on [1, 2], Q20, 257 entries."""
+    entries = tuple(
+        _round_checked(RSQRT_SCALE - RSQRT_CHORD_DROP * i / SEGMENTS
+                       - RSQRT_SCALE / math.sqrt(1.0 + i / SEGMENTS), f"rsqrt[{i}]")
+        for i in range(SEGMENTS + 1)
+    )
+    return Table("RsqrtTableFixed", "reciprocal square root residual, x = 1 + Index / 256",
+                 "Q20 (1 = 1/1048576)", entries)
+
+
 def tables() -> list[Table]:
-    return [sin_table(), atan_table()]
+    return [sin_table(), atan_table(), rsqrt_table()]
 
 
 def table_bytes() -> int:
@@ -126,24 +146,30 @@ _HEADER = """\
    edit: change the generator and regenerate. The file is reproducible byte
    for byte (a unit test regenerates it and compares).
 
-   Two lookup blocks, each holding one ARRAY[0..256] OF UINT (257 x 2 bytes =
-   514 bytes; {total} bytes in all) as a VAR CONSTANT with an initialiser.
+   Three lookup blocks, each holding one ARRAY[0..256] OF UINT (257 x 2 bytes
+   = 514 bytes; {total} bytes in all) as a VAR CONSTANT with an initialiser.
    A table is the RESIDUAL of the function over its straight chord (sine and
-   arc tangent are concave on these ranges, so the residual is >= 0 and zero
-   at both ends); the caller adds the chord back in exact integer arithmetic.
-   This keeps the values inside a UINT at 4x (sine) and 10x (arc tangent)
+   arc tangent are concave, the reciprocal square root convex on these
+   ranges, so the residual is >= 0 and zero at both ends); the caller adds
+   the chord back in exact integer arithmetic. This keeps the values inside a
+   UINT at 4x (sine), 10x (arc tangent) and 16x (reciprocal square root)
    finer steps than storing the function itself.
 
      SinTableFixed   Entry[i] = round(sin(i * 90/256 deg) * 2^18 - i * 1024)
                      range {sin_min}..{sin_max}, unit Q18 (1/262144)
      AtanTableFixed  Entry[i] = round(atan(i/256) [1.0E-4 deg] - i * 450000/256)
                      range {atan_min}..{atan_max}, unit 1.0E-4 deg
+     RsqrtTableFixed Entry[i] = round(2^20 - i * 307121/256
+                                      - 2^20 / sqrt(1 + i/256))
+                     range {rsqrt_min}..{rsqrt_max}, unit Q20 (1/1048576);
+                     307121 = 2^20 - round(2^20 / sqrt(2))
 
-   Interface of both blocks (one call per lookup, no other state):
+   Interface of all three blocks (one call per lookup, no other state):
      Index : INT   interval number, 0..255; values outside are clamped.
      Lower : DINT  Entry[Index]        (unit as above)
      Upper : DINT  Entry[Index + 1]
-   Users: SinCosFixed and Atan2Fixed in KinematicsFixed.st.
+   Users (KinematicsFixed.st): QuarterSineFixed (sine), Atan2Fixed (arc
+   tangent), RsqrtFixed (reciprocal square root).
    Portability: tables live in FUNCTION_BLOCK instances (MatIEC has no global
    constants outside a CONFIGURATION), literal bounds, integer types only.
    ============================================================================ *)
@@ -167,7 +193,6 @@ FUNCTION_BLOCK {block}
     Row : INT;
   END_VAR
   VAR CONSTANT
-    LastRow : INT := {last_row};
     Entry : ARRAY[0..{segments}] OF UINT := [
 {entries}
     ];
@@ -175,8 +200,8 @@ FUNCTION_BLOCK {block}
   Row := Index;
   IF Row < 0 THEN
     Row := 0;
-  ELSIF Row > LastRow THEN
-    Row := LastRow;
+  ELSIF Row > {last_row} THEN
+    Row := {last_row};
   END_IF;
   Lower := UINT_TO_DINT(Entry[Row]);
   Upper := UINT_TO_DINT(Entry[Row + 1]);
@@ -186,13 +211,14 @@ END_FUNCTION_BLOCK
 
 def render_tables() -> str:
     """The complete text of KinematicsFixedTables.st."""
-    sin_t, atan_t = tables()
+    sin_t, atan_t, rsqrt_t = tables()
     text = _HEADER.format(
         total=table_bytes(),
         sin_min=min(sin_t.entries), sin_max=max(sin_t.entries),
         atan_min=min(atan_t.entries), atan_max=max(atan_t.entries),
+        rsqrt_min=min(rsqrt_t.entries), rsqrt_max=max(rsqrt_t.entries),
     )
-    for table in (sin_t, atan_t):
+    for table in (sin_t, atan_t, rsqrt_t):
         text += _BLOCK.format(
             block=table.block, title=table.title, unit=table.unit, segments=SEGMENTS,
             last_row=SEGMENTS - 1, entries="\n".join(_format_entries(table.entries)),

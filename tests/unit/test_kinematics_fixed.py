@@ -131,28 +131,72 @@ def test_table_bytes_within_goal() -> None:
     sizes = {"UINT": 2, "INT": 2, "DINT": 4, "UDINT": 4, "SINT": 1, "USINT": 1}
     total = sum(a.size * sizes[str(a.element)] for a in arrays)
     print(f"\n  table bytes: {total} ({len(arrays)} tables; seed: 31,106)")
-    assert total == lutgen.table_bytes() == 1028
+    assert total == lutgen.table_bytes() == 1542
     assert total <= TABLE_BYTES_GOAL
 
 
 def test_tables_match_their_definition() -> None:
-    sin_t, atan_t = lutgen.tables()
+    sin_t, atan_t, rsqrt_t = lutgen.tables()
     for i, v in enumerate(sin_t.entries):
         assert v == round(math.sin(i * math.pi / 512) * 2**18 - i * 1024)
     for i, v in enumerate(atan_t.entries):
         assert v == round(math.degrees(math.atan(i / 256)) * 1e4 - i * 450000 / 256)
+    assert 2**20 - round(2**20 / math.sqrt(2)) == 307121
+    for i, v in enumerate(rsqrt_t.entries):
+        assert v == round(2**20 - i * 307121 / 256 - 2**20 / math.sqrt(1 + i / 256))
     assert sin_t.entries[0] == sin_t.entries[-1] == atan_t.entries[0] == atan_t.entries[-1] == 0
+    assert rsqrt_t.entries[0] == rsqrt_t.entries[-1] == 0
 
 
 # ------------------------------------------------------------------ building blocks
 def test_isqrt_is_exact_floor(mod: Any) -> None:
+    isqrt = mod.new_fb("IsqrtFixed")
     rng = np.random.default_rng(61131)
     values = [0, 1, 2, 3, 4, 15, 16, 17, 2**62, 2**63 - 1, (2**31 - 1) ** 2, (2**31 - 1) ** 2 - 1]
     values += [int(v) for v in rng.integers(0, 2**63 - 1, 2000, dtype=np.int64)]
+    values += [int(v) for v in rng.integers(0, 2**20, 1000, dtype=np.int64)]
     values += [int(r) ** 2 + d for r in rng.integers(1, 3 * 10**9, 500) for d in (-1, 0, 1)]
+    values += [r * r + d for r in range(1, 200) for d in (-1, 0, 1)]
     for v in values:
-        assert mod.call("IsqrtLint", Value=v) == math.isqrt(v), v
-    assert mod.call("IsqrtLint", Value=-5) == 0
+        isqrt(Value=v)
+        assert isqrt.Root == math.isqrt(v), v
+    isqrt(Value=-5)
+    assert isqrt.Root == 0
+
+
+def test_rsqrt_seed_and_square_root_mantissa(mod: Any) -> None:
+    seed = mod.new_fb("RsqrtFixed")
+    worst = 0.0
+    for x30 in range(2**30, 2**31 + 1, 2**30 // 4099):
+        seed(X30=x30)
+        worst = max(worst, abs(seed.Y30 / 2**30 * math.sqrt(x30 / 2**30) - 1.0))
+    print(f"\n  RsqrtFixed max relative error {worst:.2e}")
+    assert worst <= 2.0e-6
+    norm = mod.new_fb("SqrtNormFixed")
+    rng = np.random.default_rng(3)
+    for v in [1, 2, 3, 2**60 - 1, 2**60, 2**62 - 1,
+              *(int(x) for x in rng.integers(1, 2**62 - 1, 2000, dtype=np.int64))]:
+        norm(Value=v)
+        assert 2**30 <= norm.Root <= 2**31 and 0 <= norm.Shift <= 30, v
+        assert abs(norm.Root - math.sqrt(v * 4**norm.Shift)) <= 1.0, v
+
+
+def test_sqrt_product_without_the_product(mod: Any) -> None:
+    prod = mod.new_fb("SqrtProductFixed")
+    rng = np.random.default_rng(11)
+    pairs = [(1, 1), (2, 8), (2**62 - 1, 2**62 - 1), (1, 2**62 - 1), (3, 5)]
+    pairs += [(int(a), int(b)) for a, b in zip(rng.integers(1, 2**62 - 1, 1500, dtype=np.int64),
+                                              rng.integers(1, 2**62 - 1, 1500, dtype=np.int64),
+                                              strict=True)]
+    pairs += [(int(a), int(b)) for a, b in zip(rng.integers(1, 10**6, 1500),
+                                              rng.integers(1, 2**55, 1500, dtype=np.int64),
+                                              strict=True)]
+    for a, b in pairs:
+        prod(A=a, B=b)
+        want = math.sqrt(a) * math.sqrt(b)
+        assert abs(prod.Root - want) <= 1.0 + 2.5e-6 * want, (a, b, prod.Root, want)
+    prod(A=0, B=5)
+    assert prod.Root == 0
 
 
 def test_div_round(mod: Any) -> None:
