@@ -77,6 +77,7 @@ class Emitter:
         self.cur: PouSym | None = None
         self.loc = _Local()
         self.unmapped = 0
+        self.ffi_only: list[str] = []
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -140,8 +141,8 @@ class Emitter:
                 "#ifndef ARMBENCH_BARE_METAL\n"
                 "plc_image_t plc_image;\nplc_globals_t plc_globals;\n#endif\n" +
                 "".join(self.init_fns) + "".join(self.code))
-        return CUnit(decls + "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n",
-                     code)
+        return CUnit(decls + "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
+                     + "".join(self.ffi_only), code)
 
     def pou_struct(self, sym: PouSym) -> None:
         cname = self.pou_cname(sym)
@@ -150,6 +151,11 @@ class Emitter:
             if v.kind == A.VAR_EXTERNAL:
                 continue
             ct = self.ctype(v.type)
+            if is_shared_constant(v):
+                # one read-only copy for all instances and calls, not one per instance
+                # cffi (ABI mode) reads it as a plain global; C sees the const definition
+                self.ffi_only.append(f"extern {ct} {const_name(cname, v)};\n")
+                continue
             ptr = "*" if v.kind == A.VAR_IN_OUT or v.address else ""
             lines.append(f"    {ct} {ptr}{v.key};\n")
         if sym.kind == "FUNCTION":
@@ -243,6 +249,37 @@ class Emitter:
         assert isinstance(init, A.Expr)
         out.append(f"{target} = {self.expr(init, want=t)};")
 
+    def static_init(self, t: Type, init: A.Init | None) -> str:
+        """A C constant initialiser for a value of type t (for `static const` data)."""
+        if isinstance(t, ArrayType | StructType) and init is None and t.default is not None:
+            init = t.default  # type: ignore[assignment]
+        if isinstance(t, StructType):
+            parts = []
+            for fk, (_, ft) in t.fields.items():
+                finit = None
+                if isinstance(init, A.StructInit):
+                    finit = next((v for n, v in init.fields if n.upper() == fk), None)
+                if finit is None:
+                    finit = t.inits.get(fk)  # type: ignore[assignment]
+                parts.append(self.static_init(ft, finit))
+            return "{ " + ", ".join(parts) + " }"
+        if isinstance(t, ArrayType):
+            if isinstance(init, A.Literal | A.Unary | A.Binary):
+                init = A.ArrayInit(init.pos, [(A.Literal(init.pos, "int", t.size, ""), init)])
+            items: list[str] = []
+            if isinstance(init, A.ArrayInit):
+                for count_e, val in init.items:
+                    count = 1 if count_e is None else int(self.const_int(count_e))
+                    items.extend([self.static_init(t.element, val)] * count)
+            return "{ { " + (", ".join(items) if items else "0") + " } }"
+        if init is None:
+            if isinstance(t, EnumType) and t.values:
+                first = next(iter(t.values.values()))[1]
+                return str(first if t.default is None else t.default)
+            return "0"
+        assert isinstance(init, A.Expr)
+        return self.expr(init, want=t)
+
     def const_int(self, e: A.Expr) -> int:
         if isinstance(e, A.Literal):
             return int(e.value)
@@ -257,8 +294,12 @@ class Emitter:
         self.loc = _Local()
         cname = self.pou_cname(sym)
         init: list[str] = ["memset(self, 0, sizeof *self);"]
+        consts = "".join(
+            f"const {self.ctype(v.type)} {const_name(cname, v)} = "
+            f"{self.static_init(v.type, v.init)};\n"
+            for v in sym.vars.values() if is_shared_constant(v))
         for v in sym.vars.values():
-            if v.kind in (A.VAR_EXTERNAL, A.VAR_IN_OUT):
+            if v.kind in (A.VAR_EXTERNAL, A.VAR_IN_OUT) or is_shared_constant(v):
                 continue
             if v.address:
                 init.append(f"self->{v.key} = {self.address_ptr(v)};")
@@ -276,6 +317,7 @@ class Emitter:
         body = ("    int plc__brk_ = 0;\n    (void)plc__brk_;\n" +
                 "".join(f"    {t}\n" for t in temps) + self.block(sym.node.body, 1))
         self.code.append(
+            consts +
             f"void {cname}_init({cname} *self) {{\n    " + "\n    ".join(init) + "\n}\n"
             f"static void {cname}_body({cname} *self) {{\n{body}}}\n"
             f"int {cname}_run({cname} *self) {{\n"
@@ -456,6 +498,9 @@ class Emitter:
             return "self->ret_"
         if ref.kind == "global":
             return f"(*plc_globals.{v.key})" if v.address else f"plc_globals.{v.key}"
+        if is_shared_constant(v):
+            assert self.cur is not None
+            return const_name(self.pou_cname(self.cur), v)
         if v.kind == A.VAR_IN_OUT or v.address:
             return f"(*self->{v.key})"
         return f"self->{v.key}"
@@ -472,6 +517,8 @@ class Emitter:
                 assert isinstance(sym, PouSym)
                 if sym.vars[key].kind == A.VAR_IN_OUT:
                     return f"(*{base}.{key})"
+                if is_shared_constant(sym.vars[key]):
+                    return const_name(self.pou_cname(sym), sym.vars[key])
             return f"{base}.{key}"
         if isinstance(e, A.Index):
             at = self.p.expr_types[e.obj]
@@ -571,14 +618,14 @@ class Emitter:
                 raise AssertionError("MOD on REAL")
             return f"({a} {op} {b})"
         signed = t.kind in ("sint", "time")
-        if op == "/":
-            fn = "plc__div_s" if signed else "plc__div_u"
-            cast = "int64_t" if signed else "uint64_t"
-            return f"(({ct}){fn}(({cast}){a}, ({cast}){b}, {self.pos(e)}))"
-        if op == "MOD":
-            fn = "plc__mod_s" if signed else "plc__mod_u"
-            cast = "int64_t" if signed else "uint64_t"
-            return f"(({ct}){fn}(({cast}){a}, ({cast}){b}))"
+        if op in ("/", "MOD"):
+            # 32-bit helpers for types up to 32 bits: one hardware divide on a Cortex-M3
+            width = "32" if t.bits <= 32 else ""
+            cast = ("int32_t" if width else "int64_t") if signed else \
+                ("uint32_t" if width else "uint64_t")
+            kind = ("div" if op == "/" else "mod") + ("_s" if signed else "_u") + width
+            pos = f", {self.pos(e)}" if op == "/" else ""
+            return f"(({ct})plc__{kind}(({cast}){a}, ({cast}){b}{pos}))"
         if t.bits == 64 or t.bits == 32:
             # do 32/64-bit arithmetic unsigned to avoid C overflow UB, then cast back
             ut = "uint64_t" if t.bits == 64 else "uint32_t"
@@ -678,11 +725,39 @@ class Emitter:
             return "({ " + " ".join(decl) + " " + body + f"{r}; }})"
         if name in ("SHL", "SHR", "ROL", "ROR"):
             x = self.expr(args[0], want=t)
+            ut = "uint32_t" if t.bits <= 32 else "uint64_t"
+            lit = args[1]
+            if isinstance(lit, A.Literal) and lit.kind == "int":
+                # a constant shift count needs no range check at run time
+                k = int(lit.value)
+                if name in ("ROL", "ROR"):
+                    k %= t.bits
+                    if k == 0:
+                        return x
+                    left = k if name == "ROL" else t.bits - k
+                    return (f"(({ct})((({ut}){x} << {left}) | "
+                            f"(({ut}){x} >> {t.bits - left})))")
+                if not 0 <= k < t.bits:
+                    return f"(({ct})0)"
+                return f"(({ct})(({ut}){x} {'<<' if name == 'SHL' else '>>'} {k}))"
             nt = self.p.expr_types[args[1]]
             n = self.expr(args[1], want=nt if not isinstance(nt, LiteralType) else
                           ELEMENTARY["DINT"])
+            if t.bits <= 32 and name in ("SHL", "SHR"):
+                return f"(({ct})plc__{name.lower()}32((uint32_t){x}, (int32_t){n}, {t.bits}))"
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def is_shared_constant(v: VarSym) -> bool:
+    """A VAR CONSTANT is never written (the checker refuses it), so all instances and calls
+    can share one read-only copy."""
+    return v.constant and v.kind == A.VAR and not v.address and \
+        not isinstance(v.type, PouType)
+
+
+def const_name(pou_cname: str, v: VarSym) -> str:
+    return f"K_{pou_cname}_{v.key}"
 
 
 def split_address(addr: str) -> tuple[str, str, list[int]]:

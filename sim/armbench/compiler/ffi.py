@@ -18,7 +18,7 @@ import cffi
 
 from ..faults import PlcFault
 from . import ast as A
-from .emit_c import CUnit
+from .emit_c import CUnit, const_name, is_shared_constant
 from .symbols import CheckedProgram, PouSym, VarSym
 from .types import ArrayType, ElemType, EnumType, PouType, StructType, Type
 
@@ -54,7 +54,8 @@ class Values:
             sym = t.symbol
             assert isinstance(sym, PouSym)
             return {v.name: self.to_py(getattr(c, v.key), v.type) for v in sym.vars.values()
-                    if v.kind not in (A.VAR_EXTERNAL, A.VAR_IN_OUT, A.VAR_TEMP) and not v.address}
+                    if v.kind not in (A.VAR_EXTERNAL, A.VAR_IN_OUT, A.VAR_TEMP)
+                    and not v.address and not is_shared_constant(v)}
         raise TypeError(f"cannot convert {t}")
 
     def _reshape(self, flat: list[Any], shape: list[int]) -> list[Any]:
@@ -150,6 +151,9 @@ class Instance:
 
     def get(self, name: str) -> Any:
         v = self._var(name)
+        if is_shared_constant(v):
+            shared = getattr(self._m.lib, const_name(_pou_cname(self._sym), v))
+            return self._m.values.to_py(shared, v.type)
         c = getattr(self._c, v.key)
         if v.kind == A.VAR_IN_OUT or v.address:
             if c == self._m.ffi.NULL:
@@ -161,6 +165,8 @@ class Instance:
         for name, value in values.items():
             v = self._var(name)
             what = f"{self._sym.name}.{v.name}"
+            if v.constant:
+                raise PlcArgumentError(f"{what} is a CONSTANT")
             if v.kind == A.VAR_IN_OUT:
                 ffi = self._m.ffi
                 item = ffi.typeof(getattr(self._c, v.key)).item
@@ -186,7 +192,8 @@ class Instance:
     def vars(self) -> dict[str, Any]:
         return {v.name: self.get(v.name) for v in self._sym.vars.values()
                 if v.kind not in (A.VAR_EXTERNAL, A.VAR_TEMP)
-                and not (v.kind == A.VAR_IN_OUT and getattr(self._c, v.key) == self._m.ffi.NULL)}
+                and not (v.kind == A.VAR_IN_OUT and
+                         getattr(self._c, v.key) == self._m.ffi.NULL)}
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):

@@ -63,6 +63,27 @@ static inline __attribute__((always_inline)) int64_t plc__mod_s(int64_t a, int64
     return a % b;
 }
 static inline __attribute__((always_inline)) uint64_t plc__mod_u(uint64_t a, uint64_t b) { return b == 0 ? 0 : a % b; }
+/* 32-bit variants: the M3 divides 32-bit numbers in one instruction, 64-bit ones in libgcc */
+static inline __attribute__((always_inline)) int32_t plc__div_s32(int32_t a, int32_t b, const char *pos) {
+    if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
+    if (b == -1) return (int32_t)(0u - (uint32_t)a);  /* INT32_MIN / -1 wraps */
+    return a / b;
+}
+static inline __attribute__((always_inline)) uint32_t plc__div_u32(uint32_t a, uint32_t b, const char *pos) {
+    if (__builtin_expect(b == 0, 0)) plc__fault(pos, "integer division by zero");
+    return a / b;
+}
+static inline __attribute__((always_inline)) int32_t plc__mod_s32(int32_t a, int32_t b) {
+    if (b == 0 || b == -1) return 0;
+    return a % b;
+}
+static inline __attribute__((always_inline)) uint32_t plc__mod_u32(uint32_t a, uint32_t b) { return b == 0 ? 0 : a % b; }
+static inline __attribute__((always_inline)) uint32_t plc__shl32(uint32_t v, int32_t n, int bits) {
+    return (n < 0 || n >= bits) ? 0u : (v << n);
+}
+static inline __attribute__((always_inline)) uint32_t plc__shr32(uint32_t v, int32_t n, int bits) {
+    return (n < 0 || n >= bits) ? 0u : (v >> n);
+}
 static inline __attribute__((always_inline)) int64_t plc__r2i(double x) { return (int64_t)nearbyint(x); } /* half to even */
 static inline __attribute__((always_inline)) uint64_t plc__r2u(double x) { return x < 0.0 ? 0u : (uint64_t)(int64_t)nearbyint(x); }
 static inline __attribute__((always_inline)) uint64_t plc__shl(uint64_t v, int64_t n, int bits) {
