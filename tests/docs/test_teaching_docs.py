@@ -74,11 +74,13 @@ def test_pages_exist() -> None:
 
 # --------------------------------------------------------------------------- python blocks
 
-@pytest.mark.parametrize("page", CODE_PAGES, ids=_id)
+def _runnable(page: Path) -> list[Block]:
+    return [b for b in blocks(page) if b.info[:1] == ["python"] and "no-run" not in b.info]
+
+
+@pytest.mark.parametrize("page", [p for p in CODE_PAGES if _runnable(p)], ids=_id)
 def test_python_blocks_run(page: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    runnable = [b for b in blocks(page) if b.info[:1] == ["python"] and "no-run" not in b.info]
-    if not runnable:
-        pytest.skip("no runnable python blocks")
+    runnable = _runnable(page)
     monkeypatch.chdir(REPO)
     namespace: dict[str, object] = {"__name__": f"docs_{page.stem.replace('-', '_')}"}
     for b in runnable:
