@@ -76,6 +76,7 @@ class LiteralType(Type):
 
 
 INT_LIT = LiteralType("integer literal")
+ERROR_T = LiteralType("<error>")  # poison type: suppresses follow-up diagnostics
 REAL_LIT = LiteralType("real literal")
 
 
