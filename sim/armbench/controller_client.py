@@ -15,29 +15,31 @@ import time
 from collections.abc import Iterable, Sequence
 from dataclasses import astuple, dataclass
 
-from .registermap import Register, controller_map
+from .registermap import Register, controller_constants, controller_map
 from .softplc import modbus_map as mm
 from .softplc.modbus_client import PlcClient
 
-CMD_MOVE_XYZ = 1
-CMD_MOVE_JOINTS = 2
-CMD_INIT_PWM = 3
-CMD_RELAX = 4
-CMD_SET_CALIBRATION = 5
-CMD_SOLVE_BATCH = 6
+# Command codes, result codes and states come from Controller.st's constants (one source).
+_K = controller_constants()
+CMD_MOVE_XYZ = _K["CmdMoveXyz"]
+CMD_MOVE_JOINTS = _K["CmdMoveJoints"]
+CMD_INIT_PWM = _K["CmdInitPwm"]
+CMD_RELAX = _K["CmdRelax"]
+CMD_SET_CALIBRATION = _K["CmdSetCalibration"]
+CMD_SOLVE_BATCH = _K["CmdSolveBatch"]
 
-ERR_OK = 0
-ERR_UNREACHABLE = 1
-ERR_SINGULAR = 2
-ERR_NOT_FINITE = 3
-ERR_BAD_CALIBRATION = 5
-ERR_UNKNOWN_COMMAND = 100
-ERR_JOINT_LIMIT = 101
-ERR_BAD_JOINT = 102
-ERR_BAD_COUNT = 103
+ERR_OK = _K["Err.NoError"]
+ERR_UNREACHABLE = _K["Err.Unreachable"]
+ERR_SINGULAR = _K["Err.Singular"]
+ERR_NOT_FINITE = _K["Err.NotFinite"]
+ERR_BAD_CALIBRATION = _K["Err.BadCalibration"]
+ERR_UNKNOWN_COMMAND = _K["CtlErr.UnknownCommand"]
+ERR_JOINT_LIMIT = _K["CtlErr.JointLimit"]
+ERR_BAD_JOINT = _K["CtlErr.BadJoint"]
+ERR_BAD_COUNT = _K["CtlErr.BadCount"]
 
-STATE_READY = 0
-STATE_BUSY = 1
+STATE_READY = _K["StateReady"]
+STATE_BUSY = _K["StateBusy"]
 
 JOINTS = ("Base", "Shoulder", "Elbow")  # CmdJoint 0, 1, 2 = PCA9685 channels 0, 1, 2
 

@@ -17,8 +17,11 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
+from .compiler.symbols import InstanceModel
+from .compiler.types import StructType
 from .softplc import modbus_map as mm
 
 REPO = Path(__file__).resolve().parents[2]
@@ -98,9 +101,7 @@ def _group_and_comment(lines: Sequence[str], line: int) -> tuple[str, str]:
     return group, description
 
 
-def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -> list[Register]:
-    """The map of the (first, or named) program instance of the sources' CONFIGURATION,
-    in declaration order. Raises CompileFailed when the sources do not check."""
+def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceModel:
     prog, diags = analyse(list(paths))
     if prog is None:
         raise CompileFailed(diags.sorted())
@@ -109,6 +110,13 @@ def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -
     inst = prog.config.instances[0]
     if instance is not None:
         inst = next(i for i in prog.config.instances if i.name.upper() == instance.upper())
+    return inst
+
+
+def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -> list[Register]:
+    """The map of the (first, or named) program instance of the sources' CONFIGURATION,
+    in declaration order. Raises CompileFailed when the sources do not check."""
+    inst = _instance(paths, instance)
     sources: dict[str, list[str]] = {}
     regs: list[Register] = []
     for var in inst.pou.vars.values():
@@ -121,6 +129,30 @@ def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -
         regs.append(Register(var.name, str(var.type), var.address.upper(), table, address,
                              count, group, description))
     return regs
+
+
+def constants(paths: Sequence[str | Path] = SOURCES,
+              instance: str | None = None) -> dict[str, int]:
+    """The program's integer VAR CONSTANTs (command codes, states, ...) by name, and the
+    fields of its constant STRUCTs as `Var.Field` (error codes), from the ST itself."""
+    out: dict[str, int] = {}
+    for var in _instance(paths, instance).pou.vars.values():
+        if not var.constant:
+            continue
+        if isinstance(var.init, Literal) and var.init.kind == "int":
+            out[var.name] = int(var.init.value)
+        elif isinstance(var.type, StructType):
+            for key, (spelling, _) in var.type.fields.items():
+                init = var.type.inits.get(key)
+                if isinstance(init, Literal) and init.kind == "int":
+                    out[f"{var.name}.{spelling}"] = int(init.value)
+    return out
+
+
+@cache
+def controller_constants() -> dict[str, int]:
+    """constants() of the controller, computed once per process."""
+    return constants()
 
 
 @cache
