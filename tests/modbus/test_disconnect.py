@@ -28,6 +28,7 @@ from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
 
 SCANS = 5  # scans to wait before concluding "nothing happened"
+ACCEPT_PERIOD_S = 0.15  # OpenPLC v3 accepts a pending connection every 100 ms
 
 
 def _client(address: tuple[str, int]) -> tuple[PlcClient, ArmControllerClient]:
@@ -106,6 +107,12 @@ def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) 
     frame = struct.pack(">HHHB", 0x4242, 0, len(pdu) + 1, 1) + pdu
     with socket.create_connection(plc_address, timeout=3.0) as raw:
         raw.sendall(frame[: len(frame) // 2])
+    # The raw connection gets no reply, so nothing shows when the PLC has accepted it. OpenPLC
+    # v3's server polls accept() every 100 ms and, when two connections are pending at once,
+    # can hand both threads the same socket (a known OpenPLC race), so the next client would
+    # be lost. Give it one accept period (plus margin) to take the raw connection first; the
+    # soft PLC does not need this, and it changes nothing in what is checked.
+    time.sleep(ACCEPT_PERIOD_S)
     modbus, ctl = _client(plc_address)
     try:
         _wait_scans(ctl)

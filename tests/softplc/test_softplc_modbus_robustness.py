@@ -46,7 +46,7 @@ def test_truncated_frame_then_close(server: ModbusServer, garbage: bytes) -> Non
         MBAP.pack(1, 0xFFFF, 6, 1) + READ_QW0,
         MBAP.pack(1, 0, 0, 1) + READ_QW0,  # length shorter than unit id + function code
         MBAP.pack(1, 0, 1, 1) + READ_QW0,
-        MBAP.pack(1, 0, 255, 1) + READ_QW0,  # longer than any Modbus ADU
+        MBAP.pack(1, 0, 9995, 1) + READ_QW0,  # longer than OpenPLC's 10000-byte frame buffer
         MBAP.pack(1, 0, 0xFFFF, 1) + READ_QW0,
     ],
 )

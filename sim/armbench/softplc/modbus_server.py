@@ -4,6 +4,29 @@ Hand-written MBAP/PDU handling instead of pymodbus: it is several times faster p
 lets every request run under the scan lock (so function 16 lands atomically between scans),
 and keeps pymodbus out of everything but the client module.
 
+Parity with the OpenPLC v3 runtime (docs/modbus-parity.md; measured on the real runtime and
+pinned by tests/modbus/test_modbus_openplc_parity.py, which runs against both). The server
+answers the way the runtime does, not the way the Modbus specification would:
+
+* Quantity 0 is not an error: FC1-FC4 answer with an empty data field, FC15/FC16 (byte
+  count 0) echo address and quantity 0 and write nothing.
+* Size limits come from the one-byte byte count, not from the spec's ADU limits: reads of
+  more than 255 data bytes (FC1/FC2 above 2040 bits, FC3/FC4 above 127 registers) are
+  exception 2 (not 3). FC15/FC16 take up to 255/254 data bytes (2040 coils, 127 registers);
+  a byte count that does not match the quantity, or fewer data bytes than it, is exception 3.
+  Frames of any MBAP length up to 9994 are read whole.
+* Bit requests work on whole bytes: FC1/FC2/FC15 cover start .. start + 8 * byte count - 1,
+  so the range is checked against 8192 rounded up to whole bytes (FC1 at 8185 for 1 coil is
+  exception 2); the unused bits of a read reply carry the neighbouring bits' values, and FC15
+  writes the padding bits of its data to the neighbouring coils.
+* Writes that run past the end of a table (FC15, FC16) write the part inside it, then answer
+  exception 2.
+* FC5 treats any non-zero value as TRUE (0x1234 sets the coil) and echoes it.
+* Trailing bytes after a complete PDU are ignored; a PDU shorter than 5 bytes is exception 3.
+
+Not copied: the runtime's accept loop takes one connection per 100 ms and can lose a client
+that connects within that window; this server accepts at once.
+
 Threading model: one accept thread (selector + wake-up socket so ``stop`` needs no polling)
 and one thread per connection with a blocking socket. A connection that sends a broken frame
 is dropped without affecting the others.
@@ -40,13 +63,13 @@ DEFAULT_HOST: Final = "127.0.0.1"
 DEFAULT_PORT: Final = 5020
 SERVER_DEVICE_FAILURE: Final = 4
 
-# Modbus application protocol limits (spec V1.1b3 §6): they keep a response inside one ADU.
-MAX_READ_BITS: Final = 2000
-MAX_READ_REGISTERS: Final = 125
-MAX_WRITE_BITS: Final = 1968
-MAX_WRITE_REGISTERS: Final = 123
-# MBAP length counts unit id + PDU; a PDU is at most 253 bytes.
-MAX_MBAP_LENGTH: Final = 254
+# OpenPLC v3 runtime limits (docs/modbus-parity.md), not the Modbus spec's (2000 bits, 125
+# registers, 253-byte PDU): a byte count is one byte, so a request or reply carries at most
+# 255 data bytes, and the runtime reads frames into a 10000-byte buffer.
+MAX_DATA_BYTES: Final = 255
+MAX_REGISTERS: Final = MAX_DATA_BYTES // 2  # 127
+# MBAP length counts unit id + PDU; longer frames do not fit the runtime's buffer.
+MAX_MBAP_LENGTH: Final = 10000 - 6
 
 _MBAP = struct.Struct(">HHHB")
 _MBAP_SIZE: Final = _MBAP.size
@@ -57,12 +80,13 @@ _READ_REPLY = struct.Struct(">BB")  # function code, byte count
 
 # Precompiled per-quantity structs: big-endian for the wire, native ('=', standard sizes)
 # for the image. Index = element count.
-_BE_H: Final = tuple(struct.Struct(f">{n}H") for n in range(MAX_READ_REGISTERS + 1))
-_BE_I: Final = tuple(struct.Struct(f">{n}I") for n in range(MAX_READ_REGISTERS // 2 + 2))
-_BE_Q: Final = tuple(struct.Struct(f">{n}Q") for n in range(MAX_READ_REGISTERS // 4 + 2))
-_NE_H: Final = tuple(struct.Struct(f"={n}H") for n in range(MAX_READ_REGISTERS + 1))
-_NE_I: Final = tuple(struct.Struct(f"={n}I") for n in range(MAX_READ_REGISTERS // 2 + 2))
-_NE_Q: Final = tuple(struct.Struct(f"={n}Q") for n in range(MAX_READ_REGISTERS // 4 + 2))
+# A misaligned span of n registers touches up to n // k + 2 values of k registers each.
+_BE_H: Final = tuple(struct.Struct(f">{n}H") for n in range(MAX_REGISTERS + 1))
+_BE_I: Final = tuple(struct.Struct(f">{n}I") for n in range(MAX_REGISTERS // 2 + 3))
+_BE_Q: Final = tuple(struct.Struct(f">{n}Q") for n in range(MAX_REGISTERS // 4 + 3))
+_NE_H: Final = tuple(struct.Struct(f"={n}H") for n in range(MAX_REGISTERS + 1))
+_NE_I: Final = tuple(struct.Struct(f"={n}I") for n in range(MAX_REGISTERS // 2 + 3))
+_NE_Q: Final = tuple(struct.Struct(f"={n}Q") for n in range(MAX_REGISTERS // 4 + 3))
 
 # bytes.translate tables between 0/1 bytes and ASCII '0'/'1', for bit packing via int().
 _BYTE_TO_ASCII01: Final = bytes([0x30] + [0x31] * 255)
@@ -82,14 +106,9 @@ def _unpack_bits(data: bytes, count: int) -> bytes:
 
 
 def _addr_qty(pdu: bytes) -> tuple[int, int, int]:
-    """(function, address, quantity-or-value) of a fixed 5-byte request PDU."""
-    function, address, quantity = _ADDR_QTY.unpack(pdu)
+    """(function, address, quantity-or-value) of a request PDU of at least 5 bytes."""
+    function, address, quantity = _ADDR_QTY.unpack_from(pdu)
     return function, address, quantity
-
-
-def _write_multi_header(pdu: bytes) -> tuple[int, int, int, int]:
-    function, address, quantity, byte_count = _WRITE_MULTI.unpack_from(pdu)
-    return function, address, quantity, byte_count
 
 
 def _exception(function: int, code: int) -> bytes:
@@ -171,19 +190,23 @@ class PduHandler:
             return _exception(function, SERVER_DEVICE_FAILURE)
 
     # -- bits ----------------------------------------------------------------------------
+    # OpenPLC works on whole bytes of bits: a request for ``count`` bits at ``start`` covers
+    # the 8 * ceil(count / 8) bits from ``start``, all of which must exist, are read into the
+    # reply (the padding bits too) and, for FC15, are written from the request's data.
 
     def _read_bits(self, pdu: bytes, view: memoryview, size: int) -> bytes:
-        if len(pdu) != 5:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
         function, start, count = _addr_qty(pdu)
-        if not 1 <= count <= MAX_READ_BITS:
-            return _exception(function, ILLEGAL_DATA_VALUE)
-        if start + count > size:
+        nbytes = (count + 7) // 8
+        if nbytes == 0:
+            return _READ_REPLY.pack(function, 0)
+        end = start + 8 * nbytes
+        if nbytes > MAX_DATA_BYTES or end > size:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
         with self.lock:
-            values = view[start : start + count].tobytes()
-        packed = _pack_bits(values)
-        return _READ_REPLY.pack(function, len(packed)) + packed
+            values = view[start:end].tobytes()
+        return _READ_REPLY.pack(function, nbytes) + _pack_bits(values)
 
     def _read_coils(self, pdu: bytes) -> bytes:
         return self._read_bits(pdu, self.image.qx, COIL_COUNT)
@@ -192,44 +215,46 @@ class PduHandler:
         return self._read_bits(pdu, self.image.ix, DISCRETE_INPUT_COUNT)
 
     def _write_coil(self, pdu: bytes) -> bytes:
-        if len(pdu) != 5:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
         function, address, value = _addr_qty(pdu)
-        if value not in (0x0000, 0xFF00):
-            return _exception(function, ILLEGAL_DATA_VALUE)
         if address >= COIL_COUNT:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
         with self.lock:
-            self.image.qx[address] = 1 if value else 0
-        return pdu
+            self.image.qx[address] = 1 if value else 0  # any non-zero value is TRUE
+        return pdu[:5]
 
     def _write_coils(self, pdu: bytes) -> bytes:
-        if len(pdu) < _WRITE_MULTI.size:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
-        function, start, count, byte_count = _write_multi_header(pdu)
-        if (
-            not 1 <= count <= MAX_WRITE_BITS
-            or byte_count != (count + 7) // 8
-            or len(pdu) != _WRITE_MULTI.size + byte_count
-        ):
+        function, start, count = _addr_qty(pdu)
+        nbytes = (count + 7) // 8
+        if len(pdu) < _WRITE_MULTI.size + nbytes or pdu[5] != nbytes:
             return _exception(function, ILLEGAL_DATA_VALUE)
-        if start + count > COIL_COUNT:
+        if nbytes == 0:
+            return pdu[:5]
+        end = start + 8 * nbytes
+        stop = min(end, COIL_COUNT)
+        if stop > start:
+            data = pdu[_WRITE_MULTI.size : _WRITE_MULTI.size + nbytes]
+            values = _unpack_bits(data, 8 * nbytes)[: stop - start]
+            with self.lock:
+                self.image.qx[start:stop] = values
+        # Past the end: the part inside the table is written all the same.
+        if end > COIL_COUNT:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
-        values = _unpack_bits(pdu[_WRITE_MULTI.size :], count)
-        with self.lock:
-            self.image.qx[start : start + count] = values
         return pdu[:5]
 
     # -- registers -----------------------------------------------------------------------
 
     def _read_holding(self, pdu: bytes) -> bytes:
-        if len(pdu) != 5:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
         function, start, count = _addr_qty(pdu)
-        if not 1 <= count <= MAX_READ_REGISTERS:
-            return _exception(function, ILLEGAL_DATA_VALUE)
+        if count == 0:
+            return _READ_REPLY.pack(function, 0)
         end = start + count
-        if end > HOLDING_REGISTER_COUNT:
+        if count > MAX_REGISTERS or end > HOLDING_REGISTER_COUNT:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
         if end <= MD_BASE:  # the common case: %QW/%MW only, one contiguous uint16 array
             with self.lock:
@@ -256,20 +281,20 @@ class PduHandler:
         return b"".join(parts)
 
     def _read_input(self, pdu: bytes) -> bytes:
-        if len(pdu) != 5:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
         function, start, count = _addr_qty(pdu)
-        if not 1 <= count <= MAX_READ_REGISTERS:
-            return _exception(function, ILLEGAL_DATA_VALUE)
+        if count == 0:
+            return _READ_REPLY.pack(function, 0)
         end = start + count
-        if end > INPUT_REGISTER_COUNT:
+        if count > MAX_REGISTERS or end > INPUT_REGISTER_COUNT:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
         with self.lock:
             data = _BE_H[count].pack(*self.image.iw[start:end])
         return _READ_REPLY.pack(function, 2 * count) + data
 
     def _write_register(self, pdu: bytes) -> bytes:
-        if len(pdu) != 5:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
         function, address, value = _addr_qty(pdu)
         if address >= HOLDING_REGISTER_COUNT:
@@ -280,24 +305,28 @@ class PduHandler:
         else:
             with self.lock:
                 self._write_holding_span(address, pdu[3:5])
-        return pdu
+        return pdu[:5]
 
     def _write_registers(self, pdu: bytes) -> bytes:
-        if len(pdu) < _WRITE_MULTI.size:
+        if len(pdu) < 5:
             return _exception(pdu[0], ILLEGAL_DATA_VALUE)
-        function, start, count, byte_count = _write_multi_header(pdu)
-        if (
-            not 1 <= count <= MAX_WRITE_REGISTERS
-            or byte_count != 2 * count
-            or len(pdu) != _WRITE_MULTI.size + byte_count
-        ):
+        function, start, count = _addr_qty(pdu)
+        nbytes = 2 * count
+        # The byte count is one byte, so this also limits count to 127.
+        if len(pdu) < _WRITE_MULTI.size + nbytes or pdu[5] != nbytes:
             return _exception(function, ILLEGAL_DATA_VALUE)
-        if start + count > HOLDING_REGISTER_COUNT:
+        if count == 0:
+            return pdu[:5]
+        end = start + count
+        stop = min(end, HOLDING_REGISTER_COUNT)
+        if stop > start:
+            data = pdu[_WRITE_MULTI.size : _WRITE_MULTI.size + 2 * (stop - start)]
+            # One lock hold for the whole request: a scan sees all of it or none of it.
+            with self.lock:
+                self._write_holding_span(start, data)
+        # Past the end: the part inside the table is written all the same.
+        if end > HOLDING_REGISTER_COUNT:
             return _exception(function, ILLEGAL_DATA_ADDRESS)
-        data = pdu[_WRITE_MULTI.size :]
-        # One lock hold for the whole request: a scan sees all of it or none of it.
-        with self.lock:
-            self._write_holding_span(start, data)
         return pdu[:5]
 
     def _write_holding_span(self, start: int, data: bytes) -> None:
