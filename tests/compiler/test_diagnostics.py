@@ -35,8 +35,6 @@ from armbench.compiler.diagnostics import CODES
 FILES = sorted(DIAGNOSTICS.glob("*.st"))
 
 # name -> reason: the checker's output differs from the expected .txt (reported to the lead)
-XFAIL: dict[str, str] = {}  # known compiler bugs, by case name (none open)
-
 # Rules where the bench is stricter than MatIEC on purpose: MatIEC accepts these files.
 BENCH_STRICTER: dict[str, str] = {
     "E0409_in_out_not_passed": "MatIEC accepts a FUNCTION call that leaves a VAR_IN_OUT "
@@ -48,11 +46,7 @@ LINE_RE = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+): error\[(?P
 
 
 def _params() -> list[object]:
-    out = []
-    for f in FILES:
-        marks = [pytest.mark.xfail(reason=XFAIL[f.stem], strict=True)] if f.stem in XFAIL else []
-        out.append(pytest.param(f, id=f.stem, marks=marks))
-    return out
+    return [pytest.param(f, id=f.stem) for f in FILES]
 
 
 def rendered(path: Path, monkeypatch: pytest.MonkeyPatch) -> str:

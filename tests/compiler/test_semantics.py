@@ -41,16 +41,9 @@ from armbench.compiler import compile_files
 
 FILES = sorted(SEMANTICS.glob("*.st"))
 
-# name -> reason: cases blocked by a known compiler bug (reported to the lead)
-XFAIL: dict[str, str] = {}  # known compiler bugs, by case name (none open)
-
 
 def _params() -> list[object]:
-    out = []
-    for f in FILES:
-        marks = [pytest.mark.xfail(reason=XFAIL[f.stem], strict=True)] if f.stem in XFAIL else []
-        out.append(pytest.param(f, id=f.stem, marks=marks))
-    return out
+    return [pytest.param(f, id=f.stem) for f in FILES]
 
 
 def test_corpus_is_there() -> None:

@@ -193,15 +193,9 @@ class Emitter:
             out.append(f"{self.pou_cname(sym) if not sym.builtin else self.ctype(t)}"
                        f"_init(&{target});")
             return
-        if isinstance(t, ArrayType | StructType) and init is None and t.default is not None:
-            init = t.default  # type: ignore[assignment]
+        init = effective_init(t, init)
         if isinstance(t, StructType):
-            for fk, (_, ft) in t.fields.items():
-                finit = None
-                if isinstance(init, A.StructInit):
-                    finit = next((v for n, v in init.fields if n.upper() == fk), None)
-                if finit is None:
-                    finit = t.inits.get(fk)  # type: ignore[assignment]
+            for fk, ft, finit in field_inits(t, init):
                 self.init_value(f"{target}.{fk}", ft, finit, out)
             return
         if isinstance(t, ArrayType):
@@ -251,17 +245,9 @@ class Emitter:
 
     def static_init(self, t: Type, init: A.Init | None) -> str:
         """A C constant initialiser for a value of type t (for `static const` data)."""
-        if isinstance(t, ArrayType | StructType) and init is None and t.default is not None:
-            init = t.default  # type: ignore[assignment]
+        init = effective_init(t, init)
         if isinstance(t, StructType):
-            parts = []
-            for fk, (_, ft) in t.fields.items():
-                finit = None
-                if isinstance(init, A.StructInit):
-                    finit = next((v for n, v in init.fields if n.upper() == fk), None)
-                if finit is None:
-                    finit = t.inits.get(fk)  # type: ignore[assignment]
-                parts.append(self.static_init(ft, finit))
+            parts = [self.static_init(ft, finit) for _, ft, finit in field_inits(t, init)]
             return "{ " + ", ".join(parts) + " }"
         if isinstance(t, ArrayType):
             if isinstance(init, A.Literal | A.Unary | A.Binary):
@@ -747,6 +733,26 @@ class Emitter:
                 return f"(({ct})plc__{name.lower()}32((uint32_t){x}, (int32_t){n}, {t.bits}))"
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def effective_init(t: Type, init: A.Init | None) -> A.Init | None:
+    """The variable's own initial value, else its named type's default."""
+    if init is None and isinstance(t, ArrayType | StructType) and t.default is not None:
+        return t.default  # type: ignore[return-value]
+    return init
+
+
+def field_inits(t: StructType, init: A.Init | None) -> list[tuple[str, Type, A.Init | None]]:
+    """Each field with the value it starts from: the initialiser's, else the field default."""
+    out: list[tuple[str, Type, A.Init | None]] = []
+    for fk, (_, ft) in t.fields.items():
+        finit: A.Init | None = None
+        if isinstance(init, A.StructInit):
+            finit = next((v for n, v in init.fields if n.upper() == fk), None)
+        if finit is None:
+            finit = t.inits.get(fk)  # type: ignore[assignment]
+        out.append((fk, ft, finit))
+    return out
 
 
 def is_shared_constant(v: VarSym) -> bool:
