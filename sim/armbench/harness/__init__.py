@@ -1,0 +1,1 @@
+"""Test harness for Modbus regression suites (a pytest plugin, registered as `armbench`)."""
