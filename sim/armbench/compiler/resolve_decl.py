@@ -162,10 +162,7 @@ class Declarations:
             if blk.kind == A.VAR_EXTERNAL and node.kind == "FUNCTION":
                 self.d.error(blk.pos, "E0207", "VAR_EXTERNAL inside a FUNCTION is rejected by "
                              "MatIEC")
-            located = [d for d in blk.decls if d.address]
-            if located and len(located) != len(blk.decls):
-                self.d.error(blk.pos, "E0601", "located and plain variables share one VAR "
-                             "block (MatIEC rejects this)")
+            self.check_block_mix(blk)
             for decl in blk.decls:
                 key = decl.name.upper()
                 if key in p.vars or (node.kind == "FUNCTION" and key == p.key):
@@ -194,6 +191,12 @@ class Declarations:
                                  f"{p.name}: MatIEC's C for it does not compile")
                 p.vars[key] = VarSym(decl.name, t, blk.kind, blk.constant, decl.pos, decl.init,
                                      decl.address)
+
+    def check_block_mix(self, blk: A.VarBlock) -> None:
+        located = [d for d in blk.decls if d.address]
+        if located and len(located) != len(blk.decls):
+            self.d.error(blk.pos, "E0601", f"located and plain variables share one "
+                         f"{blk.kind} block (MatIEC rejects this)")
 
     def check_location(self, decl: A.VarDecl, t: Type) -> None:
         addr = decl.address or ""
@@ -232,10 +235,7 @@ class Declarations:
             self.d.error(res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
                          "upload needs it to be named Res0")
         for blk in c.globals + res.globals:
-            located = [d for d in blk.decls if d.address]
-            if located and len(located) != len(blk.decls):
-                self.d.error(blk.pos, "E0601", "located and plain variables share one "
-                             "VAR_GLOBAL block")
+            self.check_block_mix(blk)
             for decl in blk.decls:
                 key = decl.name.upper()
                 if key in self.globals:
