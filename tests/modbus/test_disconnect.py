@@ -58,6 +58,17 @@ def _unchanged(ctl: ArmControllerClient, before: tuple[Status, list[int]]) -> No
     assert words == before[1]
 
 
+def _nothing_ran(address: tuple[str, int], before: tuple[Status, list[int]]) -> None:
+    """A new client sees the state from before, after a few scans, and is served."""
+    modbus, ctl = _client(address)
+    try:
+        _wait_scans(ctl)
+        _unchanged(ctl, before)
+    finally:
+        modbus.close()
+    _serves_a_new_client(address)
+
+
 def _serves_a_new_client(address: tuple[str, int]) -> None:
     modbus, ctl = _client(address)
     try:
@@ -83,13 +94,7 @@ def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int
             modbus.write_register(cmap[name].address + i, word)
     modbus.close()
 
-    modbus, ctl = _client(plc_address)
-    try:
-        _wait_scans(ctl)
-        _unchanged(ctl, before)
-    finally:
-        modbus.close()
-    _serves_a_new_client(plc_address)
+    _nothing_ran(plc_address, before)
 
 
 def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) -> None:
@@ -113,13 +118,7 @@ def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) 
     # be lost. Give it one accept period (plus margin) to take the raw connection first; the
     # soft PLC does not need this, and it changes nothing in what is checked.
     time.sleep(ACCEPT_PERIOD_S)
-    modbus, ctl = _client(plc_address)
-    try:
-        _wait_scans(ctl)
-        _unchanged(ctl, before)
-    finally:
-        modbus.close()
-    _serves_a_new_client(plc_address)
+    _nothing_ran(plc_address, before)
 
 
 def test_disconnect_right_after_sending_a_batch(plc_address: tuple[str, int]) -> None:

@@ -71,7 +71,7 @@ class Emitter:
         self.typedefs: list[str] = []
         self.type_names: dict[int, str] = {}
         self.declared: set[str] = set()
-        self.init_fns: list[str] = []
+        self.forward: list[str] = []  # static prototypes and storage the code refers to
         self.code: list[str] = []
         self.protos: list[str] = []
         self.cur: PouSym | None = None
@@ -95,13 +95,10 @@ class Emitter:
             # one C type per shape and element: ST assigns between a named array type and an
             # anonymous array of the same shape
             name = f"ARR_{elem}_{t.shape_key()}"
-            # same anonymous shape -> same C type
-            for v in self.type_names.values():
-                if v == name:
-                    self.type_names[key] = name
-                    return name
             self.type_names[key] = name
-            self.typedefs.append(f"typedef struct {{ {elem} v[{t.size}]; }} {name};\n")
+            if name not in self.declared:
+                self.declared.add(name)
+                self.typedefs.append(f"typedef struct {{ {elem} v[{t.size}]; }} {name};\n")
             return name
         if isinstance(t, StructType):
             name = "S_" + t.name.upper()
@@ -140,7 +137,7 @@ class Emitter:
         code = ("#include \"iec_runtime.h\"\n" + decls +
                 "#ifndef ARMBENCH_BARE_METAL\n"
                 "plc_image_t plc_image;\nplc_globals_t plc_globals;\n#endif\n" +
-                "".join(self.init_fns) + "".join(self.code))
+                "".join(self.forward) + "".join(self.code))
         return CUnit(decls + "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
                      + "".join(self.ffi_only), code)
 
@@ -293,7 +290,7 @@ class Emitter:
                     self.init_value(f"(*self->{v.key})", v.type, v.init, init)
                 continue
             self.init_value(f"self->{v.key}", v.type, v.init, init)
-        self.init_fns.append(f"static void {cname}_body({cname} *self);\n")
+        self.forward.append(f"static void {cname}_body({cname} *self);\n")
         temps: list[str] = []
         if sym.kind != "FUNCTION":  # a FUNCTION's frame is initialised on every call anyway
             for v in sym.vars.values():
@@ -322,7 +319,7 @@ class Emitter:
         if arr is None:
             # valid in OpenPLC but outside its Modbus map: plain storage of its own
             self.unmapped += 1
-            self.init_fns.append(f"static {ct} plc__unmapped_{self.unmapped};\n")
+            self.forward.append(f"static {ct} plc__unmapped_{self.unmapped};\n")
             return f"&plc__unmapped_{self.unmapped}"
         return f"({ct} *)&plc_image.{arr}[{nums[0]}]"
 

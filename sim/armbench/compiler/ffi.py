@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import cffi
+import numpy as np
 
 from ..faults import PlcFault
 from . import ast as A
@@ -118,12 +119,8 @@ class Values:
             for v in value:
                 out.extend(self._flatten(v) if isinstance(v, list | tuple) else [v])
             return out
-        try:
-            import numpy as np  # optional: accept arrays too
-            if isinstance(value, np.ndarray):
-                return [x.item() for x in value.ravel()]
-        except ImportError:  # pragma: no cover
-            pass
+        if isinstance(value, np.ndarray):
+            return [x.item() for x in value.ravel()]
         raise PlcArgumentError(f"expected a list, got {value!r}")
 
 

@@ -18,6 +18,11 @@ if TYPE_CHECKING:
     from .resolve import Checker
 
 
+def numbered(f: StdFunc, args: list[A.Expr]) -> CallTarget:
+    """The call target of a function whose inputs are IN0, IN1, ... in order."""
+    return CallTarget("std", std=f, inputs=tuple((f"IN{i}", a) for i, a in enumerate(args)))
+
+
 class StdCallTyper:
     def __init__(self, checker: Checker) -> None:
         self.k = checker
@@ -120,16 +125,14 @@ class StdCallTyper:
             if not isinstance(t, ElemType):
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs elementary arguments, not {t}")
                 return ERROR_T
-            self.k.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
-                                                                  for i, a in enumerate(args)))
+            self.k.calls[c] = numbered(f, args)
             return t
         if k == "sel":
             if not need(3):
                 return ERROR_T
             self.k.coerce_to(args[0], types[0], BOOL, "SEL selector")
             t = unify(args[1:], types[1:], expected)
-            self.k.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
-                                                                  for i, a in enumerate(args)))
+            self.k.calls[c] = numbered(f, args)
             return t
         if k == "mux":
             if len(args) < 2:
@@ -141,8 +144,7 @@ class StdCallTyper:
             elif not (isinstance(kt, ElemType) and kt.is_int):
                 self.k.d.error(args[0].pos, "E0300", f"MUX selector must be an integer, not {kt}")
             t = unify(args[1:], types[1:], expected)
-            self.k.calls[c] = CallTarget("std", std=f, inputs=tuple((f"IN{i}", a)
-                                                                  for i, a in enumerate(args)))
+            self.k.calls[c] = numbered(f, args)
             return t
         if k == "shift":
             if not need(2):
