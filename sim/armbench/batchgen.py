@@ -1,5 +1,6 @@
-"""Generate the SolveBatch parts of plc_project/Controller.st (located variables cannot be
-arrays in MatIEC, so each batch point is a row of scalar %MD variables plus copy code).
+"""Generate the repetitive parts of plc_project/Controller.st: the command mailboxes and the
+SolveBatch buffer (located variables cannot be arrays in MatIEC, so each mailbox and each batch
+point is a row of scalar %MD variables plus copy code to and from internal arrays).
 
     python -m armbench.batchgen            # rewrite the generated regions
     python -m armbench.batchgen --check    # exit 1 when they are stale
@@ -18,9 +19,35 @@ from pathlib import Path
 
 CONTROLLER = Path(__file__).resolve().parents[2] / "plc_project" / "Controller.st"
 POINTS = 32
-TARGETS_MD = 100  # %MD of BatchX01
-RESULTS_MD = 200  # %MD of ResBase01
+TARGETS_MD = 400  # %MD of BatchX01
+RESULTS_MD = 500  # %MD of ResBase01
+MAILBOXES = 16
+ANSWERS_MD = 64  # %MD of Mbx01Owner
+ANSWER_STRIDE = 4
+COMMANDS_MD = 128  # %MD of Mbx01Seq
+COMMAND_STRIDE = 16  # 12 used: room for more arguments without moving the map
 INDENT = "    "
+
+COMMAND_FIELDS = (  # (name, type, comment): the MailboxCommand STRUCT, in register order
+    ("Seq", "DINT", "sequence number"),
+    ("Session", "DINT", "client session id, 0 = empty"),
+    ("Code", "DINT", "command code"),
+    ("Int1", "DINT", "integer argument 1"),
+    ("Int2", "DINT", "integer argument 2"),
+    ("Arg1", "REAL", "REAL argument 1"),
+    ("Arg2", "REAL", "REAL argument 2"),
+    ("Arg3", "REAL", "REAL argument 3"),
+    ("Arg4", "REAL", "REAL argument 4"),
+    ("Arg5", "REAL", "REAL argument 5"),
+    ("Arg6", "REAL", "REAL argument 6"),
+    ("Check", "UDINT", "Seq + Session + Code + Int1 + Int2 mod 2^32"),
+)
+ANSWER_FIELDS = (  # (name, internal MailboxState field, type, comment)
+    ("Owner", "Owner", "DINT", "session holding the mailbox, 0 = free"),
+    ("AckSeq", "DoneSeq", "DINT", "Seq of the last answered block"),
+    ("Result", "Result", "DINT", "its result code, 0 = ok"),
+    ("AckCheck", "AckCheck", "UDINT", "its Check"),
+)
 
 RESULT_FIELDS = (  # (name, type, comment)
     ("Base", "REAL", "deg, Base joint"),
@@ -71,9 +98,44 @@ def copy_out() -> list[str]:
     return lines
 
 
+def mailbox_answers() -> list[str]:
+    return [_decl(f"Mbx{k:02d}{name}", ANSWERS_MD + ANSWER_STRIDE * (k - 1) + j, st_type,
+                  f"mailbox {k}: {comment}")
+            for k in range(1, MAILBOXES + 1)
+            for j, (name, _, st_type, comment) in enumerate(ANSWER_FIELDS)]
+
+
+def mailbox_commands() -> list[str]:
+    return [_decl(f"Mbx{k:02d}{name}", COMMANDS_MD + COMMAND_STRIDE * (k - 1) + j, st_type,
+                  f"mailbox {k}: {comment}")
+            for k in range(1, MAILBOXES + 1)
+            for j, (name, st_type, comment) in enumerate(COMMAND_FIELDS)]
+
+
+def _rows(assignments: list[str], per_line: int) -> list[str]:
+    return [INDENT[:2] + " ".join(assignments[i: i + per_line])
+            for i in range(0, len(assignments), per_line)]
+
+
+def mailbox_copy_in() -> list[str]:
+    return _rows([f"MbxIn[{k}].{name} := Mbx{k:02d}{name};"
+                  for k in range(1, MAILBOXES + 1) for name, _, _ in COMMAND_FIELDS], 3)
+
+
+def mailbox_copy_out() -> list[str]:
+    return _rows([f"Mbx{k:02d}{name} := MbxState[{k}].{field};"
+                  for k in range(1, MAILBOXES + 1) for name, field, _, _ in ANSWER_FIELDS], 2)
+
+
+def batch_copy_out() -> list[str]:
+    return [line[2:] for line in copy_out()]
+
+
 REGIONS: dict[str, Callable[[], list[str]]] = {
+    "mailbox answers": mailbox_answers, "mailbox commands": mailbox_commands,
+    "mailbox copy in": mailbox_copy_in, "mailbox copy out": mailbox_copy_out,
     "batch targets": targets, "batch results": results,
-    "batch copy in": copy_in, "batch copy out": copy_out,
+    "batch copy in": copy_in, "batch copy out": batch_copy_out,
 }
 
 

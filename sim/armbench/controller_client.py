@@ -1,23 +1,34 @@
-"""Client side of ``plc_project/Controller.st``: the request/acknowledge handshake over Modbus,
-with every address taken from the register map derived from the program
-(:mod:`armbench.registermap`), so the client cannot drift from the ST.
+"""Client side of ``plc_project/Controller.st``: the mailbox handshake over Modbus (HANDSHAKE in
+the program's header, docs/register-map.md), with every address taken from the register map
+derived from the program (:mod:`armbench.registermap`), so the client cannot drift from the ST.
 
-A command is one FC16 write of the command block (``CmdSeq`` last-but-not-least: the PLC acts
-only when ``CmdSeq`` changes), then polls of ``AckSeq`` with a short sleep between them (a busy
+One client = one random session id and, while it talks to the PLC, one of the controller's
+mailboxes. A command is one FC16 write of the mailbox's command block, then polls of the
+mailbox's answer (Owner, AckSeq, Result, AckCheck) with a short sleep between them (a busy
 loop of Modbus reads steals the CPU, and in-process the GIL, from the PLC's scan thread).
-``SolveBatch`` targets are written before the command block, so a client that dies half-way
-leaves the PLC untouched; its results are read back after the acknowledge.
+The client believes a command acknowledged only when the answer carries its own sequence
+number and check word in a mailbox it owns, so it never takes another client's result.
+When the mailbox was lost before the PLC took the command (another client overwrote the block
+while claiming it), nothing ran: the client claims another mailbox and sends it again. When its
+own block was overwritten in a mailbox it still owns, it writes it again (the PLC answers a
+block once, so a second copy of an answered block runs nothing). A connection that breaks
+mid-command is reopened and the command followed up the same way. What cannot be decided
+(the client was silent for longer than the PLC's mailbox lease) raises
+:class:`HandshakeLost` instead of guessing.
 """
 
 from __future__ import annotations
 
+import random
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import astuple, dataclass
+from typing import TypeVar
 
 from .registermap import Register, controller_constants, controller_map
 from .softplc import modbus_map as mm
-from .softplc.modbus_client import PlcClient
+from .softplc.modbus_client import ModbusIoError, PlcClient
 
 # Command codes, result codes and states come from Controller.st's constants (one source).
 _K = controller_constants()
@@ -27,6 +38,10 @@ CMD_INIT_PWM = _K["CmdInitPwm"]
 CMD_RELAX = _K["CmdRelax"]
 CMD_SET_CALIBRATION = _K["CmdSetCalibration"]
 CMD_SOLVE_BATCH = _K["CmdSolveBatch"]
+CMD_RESERVE_BATCH = _K["CmdReserveBatch"]
+CMD_RELEASE_BATCH = _K["CmdReleaseBatch"]
+CMD_CLOSE = _K["CmdClose"]
+CMD_HELLO = _K["CmdHello"]
 
 ERR_OK = _K["Err.NoError"]
 ERR_UNREACHABLE = _K["Err.Unreachable"]
@@ -37,54 +52,97 @@ ERR_UNKNOWN_COMMAND = _K["CtlErr.UnknownCommand"]
 ERR_JOINT_LIMIT = _K["CtlErr.JointLimit"]
 ERR_BAD_JOINT = _K["CtlErr.BadJoint"]
 ERR_BAD_COUNT = _K["CtlErr.BadCount"]
+ERR_BUSY = _K["CtlErr.Busy"]
+ERR_BAD_SEQUENCE = _K["CtlErr.BadSequence"]
+ERR_BAD_CHECK = _K["CtlErr.BadCheck"]
+ERR_NOT_BATCH_OWNER = _K["CtlErr.NotBatchOwner"]
 
 STATE_READY = _K["StateReady"]
 STATE_BUSY = _K["StateBusy"]
+MAILBOXES = _K["MailboxMax"]
+LEASE_SCANS = _K["MailboxLeaseScans"]
+MAX_SEQ = _K["MaxSeq"]
 
-JOINTS = ("Base", "Shoulder", "Elbow")  # CmdJoint 0, 1, 2 = PCA9685 channels 0, 1, 2
+JOINTS = ("Base", "Shoulder", "Elbow")  # SetCalibration Int1 0, 1, 2 = PCA9685 channels 0..2
 
 # FC16 carries at most 123 registers and FC03 returns at most 125 (Modbus spec §6.12/§6.3).
 _MAX_WRITE_REGS = 123
 _MAX_READ_REGS = 125
 
-# Command block fields, in register order (all %MD, so one FC16 request covers them).
-_COMMAND_FIELDS = ("CmdSeq", "CmdCode", "CmdX", "CmdY", "CmdZ", "CmdBaseDeg",
-                   "CmdShoulderDeg", "CmdElbowDeg", "CmdElbowDown", "CmdCount", "CmdJoint",
-                   "CmdCalZeroDeg", "CmdCalDirection", "CmdCalMinPulseUs", "CmdCalMaxPulseUs",
-                   "CmdCalMinAngleDeg", "CmdCalMaxAngleDeg")
-_STATUS_FIELDS = ("AckSeq", "CtlState", "ErrorId", "ScanCount", "BaseDeg", "ShoulderDeg",
-                  "ElbowDeg", "EchoX", "EchoY", "EchoZ", "BasePulseUs", "ShoulderPulseUs",
-                  "ElbowPulseUs", "PwmPrescale", "PwmReady", "InitFrames", "BatchCount",
-                  "BatchFailures")
+_COMMAND_FIELDS = ("Seq", "Session", "Code", "Int1", "Int2", "Arg1", "Arg2", "Arg3", "Arg4",
+                   "Arg5", "Arg6", "Check")
+_ANSWER_FIELDS = ("Owner", "AckSeq", "Result", "AckCheck")
+_STATUS_FIELDS = ("ScanCount", "CtlState", "BusyMailbox", "CommandsAnswered",
+                  "CommandsIgnored", "BaseDeg", "ShoulderDeg", "ElbowDeg", "EchoX", "EchoY",
+                  "EchoZ", "BasePulseUs", "ShoulderPulseUs", "ElbowPulseUs", "PwmPrescale",
+                  "PwmReady", "InitFrames", "BatchOwner", "BatchCount", "BatchFailures")
 _CAL_SUFFIXES = ("ZeroDeg", "Direction", "MinPulseUs", "MaxPulseUs", "MinAngleDeg",
                  "MaxAngleDeg")
 _RESULT_PREFIXES = ("ResBase", "ResShoulder", "ResElbow", "ResX", "ResY", "ResZ", "ResErrorId")
 
+# Between two looks at the answer, the client re-reads its command block this often (s): a
+# block overwritten by a claiming client is written again.
+_BLOCK_RECHECK_S = 0.02
+_BUSY_RETRY_S = 0.005
 
-class HandshakeTimeout(Exception):
-    """The PLC did not acknowledge a command in time."""
+
+class HandshakeError(Exception):
+    """The handshake could not be completed; the message says what is known."""
+
+
+class HandshakeTimeout(HandshakeError):
+    """The PLC did not answer a command in time."""
+
+
+class HandshakeLost(HandshakeError):
+    """The client cannot tell whether its command ran (it was silent longer than the lease)."""
+
+
+class NoFreeMailbox(HandshakeError):
+    """Every mailbox of the controller is held by another client."""
 
 
 class CommandRejected(Exception):
-    """A command the caller needed came back with a non-zero ErrorId."""
+    """A command the caller needed came back with a non-zero result code."""
 
     def __init__(self, what: str, error_id: int) -> None:
-        super().__init__(f"{what}: ErrorId {error_id}")
+        super().__init__(f"{what}: result code {error_id}")
         self.error_id = error_id
+
+
+class MailboxLost(HandshakeError):
+    """Another session took the mailbox before the PLC took the command: nothing ran."""
+
+
+@dataclass(frozen=True)
+class Answer:
+    """A mailbox's answer block."""
+
+    owner: int
+    ack_seq: int
+    result: int
+    ack_check: int
 
 
 @dataclass(frozen=True)
 class Status:
+    """The controller's status after a command, with that command's result as ``error_id``."""
+
+    mailbox: int
     ack_seq: int
-    state: int
     error_id: int
+    state: int
+    busy_mailbox: int
     scan_count: int
+    commands_answered: int
+    commands_ignored: int
     joints_deg: tuple[float, float, float]
     echo_mm: tuple[float, float, float]
     pulses_us: tuple[float, float, float]
     prescale: int
     pwm_ready: bool
     init_frames: int
+    batch_owner: int
     batch_count: int
     batch_failures: int
 
@@ -112,6 +170,29 @@ class BatchPoint:
     joints_deg: tuple[float, float, float]
     echo_mm: tuple[float, float, float]
     error_id: int
+
+
+@dataclass(frozen=True)
+class Pending:
+    """A command written to a mailbox and not yet answered."""
+
+    mailbox: int
+    seq: int
+    code: int
+    check: int
+    address: int
+    words: tuple[int, ...]
+    sent_at: float  # time.monotonic() of the write
+
+
+def check_word(seq: int, session: int, code: int, int1: int, int2: int) -> int:
+    """MailboxCheckWord of Controller.st: the sum of the five DINTs' bit patterns mod 2^32."""
+    return sum(v & 0xFFFFFFFF for v in (seq, session, code, int1, int2)) & 0xFFFFFFFF
+
+
+def next_seq(seq: int) -> int:
+    """The sequence number after ``seq`` (2147483647 is followed by 1, as in the program)."""
+    return 1 if seq >= MAX_SEQ or seq < 1 else seq + 1
 
 
 def _encode(reg: Register, value: float) -> list[int]:
@@ -172,20 +253,41 @@ def _batch_size() -> int:
     return n
 
 
+_T = TypeVar("_T")
+
+
 class ArmControllerClient:
     """Commands for the controller over an open :class:`PlcClient`.
 
-    ``poll_interval_s`` is the sleep between two AckSeq polls (0 = busy loop).
+    ``session`` identifies this client to the PLC (random when not given; any non-zero DINT).
+    A mailbox is claimed at the first command (or :meth:`open`) and given back by
+    :meth:`close` (or the context manager); the PLC frees it anyway after its lease.
+    ``poll_interval_s`` is the sleep between two answer polls (0 = busy loop).
+    ``retry_busy``: a command answered Busy (another client's InitPwm runs, or the batch
+    buffer is held) is sent again until ``timeout_s``; then the Busy status is returned.
     """
 
     def __init__(self, plc: PlcClient, timeout_s: float = 5.0,
-                 poll_interval_s: float = 0.0005) -> None:
+                 poll_interval_s: float = 0.0005, session: int | None = None,
+                 retry_busy: bool = True) -> None:
+        if session is not None and not (-2**31 <= session < 2**31 and session != 0):
+            raise ValueError(f"session must be a non-zero 32-bit signed number, got {session}")
         self.plc = plc
         self.timeout_s = timeout_s
         self.poll_interval_s = poll_interval_s
-        self._cmd = _Block.of(_COMMAND_FIELDS)
+        self.retry_busy = retry_busy
+        self.session = session if session is not None else random.SystemRandom().randrange(
+            1, 2**31)
+        self.mailbox: int | None = None
+        self._seq = 0
+        self._lease_s = 1.0  # until measured by open(): the lease lasts >= 1000 scans >= 1 s
+        self._commands = [_Block.of(f"Mbx{k:02d}{f}" for f in _COMMAND_FIELDS)
+                          for k in range(1, MAILBOXES + 1)]
+        self._answers = [_Block.of(f"Mbx{k:02d}{f}" for f in _ANSWER_FIELDS)
+                         for k in range(1, MAILBOXES + 1)]
+        self._all_answers = _Block.of(f"Mbx{k:02d}{f}" for k in range(1, MAILBOXES + 1)
+                                      for f in _ANSWER_FIELDS)
         self._status = _Block.of(_STATUS_FIELDS)
-        self._ack = _Block.of(("AckSeq",))
         self._cal = _Block.of(f"{j}Cal{s}" for j in JOINTS for s in _CAL_SUFFIXES)
         self.batch_max = _batch_size()
         self._targets = _Block.of(f"Batch{a}{k:02d}" for k in range(1, self.batch_max + 1)
@@ -195,9 +297,38 @@ class ArmControllerClient:
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
-        self.polls = 0  # AckSeq reads spent waiting for acknowledges
+        self._holds_batch = False
+        self.polls = 0  # answer reads spent waiting for acknowledges
+        self.resends = 0  # commands written again (block overwritten, mailbox lost, reconnect)
+        self.reconnects = 0
+
+    def __enter__(self) -> ArmControllerClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     # -- raw block access --------------------------------------------------------------------
+
+    def _io(self, op: Callable[[], _T], deadline: float) -> _T:
+        """One Modbus request; a broken connection is reopened until ``deadline``."""
+        while True:
+            try:
+                return op()
+            except ModbusIoError as exc:
+                if time.monotonic() > deadline:
+                    raise HandshakeTimeout(f"PLC at {self.plc.host}:{self.plc.port} does not "
+                                           f"answer: {exc}") from exc
+                time.sleep(0.01)
+                self._reconnect()
+
+    def _reconnect(self) -> None:
+        self.reconnects += 1
+        self.plc.close()
+        try:
+            self.plc.connect()
+        except ModbusIoError:
+            pass  # the next request fails again and _io() decides whether to go on
 
     def _read(self, address: int, length: int) -> list[int]:
         words: list[int] = []
@@ -215,22 +346,39 @@ class ArmControllerClient:
 
     # -- status ------------------------------------------------------------------------------
 
+    def answer(self, mailbox: int) -> Answer:
+        """The answer block of ``mailbox`` (1..MAILBOXES)."""
+        b = self._answers[mailbox - 1]
+        v = b.decode(self.plc.read_holding_registers(b.address, b.length))
+        return Answer(int(v[0]), int(v[1]), int(v[2]), int(v[3]))
+
+    def answers(self) -> list[Answer]:
+        """All mailboxes' answer blocks, in mailbox order."""
+        b = self._all_answers
+        v = [int(x) for x in b.decode(self._read(b.address, b.length))]
+        return [Answer(*v[i: i + 4]) for i in range(0, len(v), 4)]
+
     def status(self) -> Status:
+        """The controller's status; ``error_id``/``ack_seq`` are this client's mailbox's."""
         f = dict(zip(_STATUS_FIELDS, self._status.decode(
             self._read(self._status.address, self._status.length)), strict=True))
+        a = self.answer(self.mailbox) if self.mailbox is not None else Answer(0, 0, 0, 0)
         return Status(
-            ack_seq=int(f["AckSeq"]), state=int(f["CtlState"]), error_id=int(f["ErrorId"]),
-            scan_count=int(f["ScanCount"]),
+            mailbox=self.mailbox or 0, ack_seq=a.ack_seq, error_id=a.result,
+            state=int(f["CtlState"]), busy_mailbox=int(f["BusyMailbox"]),
+            scan_count=int(f["ScanCount"]), commands_answered=int(f["CommandsAnswered"]),
+            commands_ignored=int(f["CommandsIgnored"]),
             joints_deg=(f["BaseDeg"], f["ShoulderDeg"], f["ElbowDeg"]),
             echo_mm=(f["EchoX"], f["EchoY"], f["EchoZ"]),
             pulses_us=(f["BasePulseUs"], f["ShoulderPulseUs"], f["ElbowPulseUs"]),
             prescale=int(f["PwmPrescale"]), pwm_ready=bool(f["PwmReady"]),
-            init_frames=int(f["InitFrames"]), batch_count=int(f["BatchCount"]),
-            batch_failures=int(f["BatchFailures"]),
+            init_frames=int(f["InitFrames"]), batch_owner=int(f["BatchOwner"]),
+            batch_count=int(f["BatchCount"]), batch_failures=int(f["BatchFailures"]),
         )
 
-    def ack_seq(self) -> int:
-        return int(self._ack.decode(self.plc.read_holding_registers(self._ack.address, 2))[0])
+    def scan_count(self) -> int:
+        reg = controller_map()["SCANCOUNT"]
+        return mm.words_to_udint(self.plc.read_holding_registers(reg.address, 2))
 
     def channel_words(self) -> list[int]:
         """The 16 LEDn_OFF words (one request: they are contiguous)."""
@@ -250,81 +398,217 @@ class ArmControllerClient:
         cals = [Calibration(v[i], int(v[i + 1]), *v[i + 2: i + n]) for i in range(0, 3 * n, n)]
         return cals[0], cals[1], cals[2]
 
-    # -- the handshake -----------------------------------------------------------------------
+    # -- the mailbox handshake ---------------------------------------------------------------
 
-    def submit(self, code: int, *, xyz: tuple[float, float, float] = (0.0, 0.0, 0.0),
-               joints: tuple[float, float, float] = (0.0, 0.0, 0.0), elbow_down: bool = False,
-               count: int = 0, joint: int = 0, cal: Calibration | None = None) -> int:
-        """Write the command block with one FC16 request; returns its CmdSeq (not waited)."""
-        ack = self.ack_seq()
-        seq = ack + 1 if ack < 2**31 - 1 else 1
-        address, words = self.command_words(seq, code, xyz=xyz, joints=joints,
-                                            elbow_down=elbow_down, count=count, joint=joint,
-                                            cal=cal)
-        self.plc.write_registers(address, words)
-        return seq
-
-    def command_words(self, seq: int, code: int, *,
-                      xyz: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                      joints: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                      elbow_down: bool = False, count: int = 0, joint: int = 0,
-                      cal: Calibration | None = None) -> tuple[int, list[int]]:
-        """(first holding register, words) of a command block: what :meth:`submit` writes."""
-        c = cal if cal is not None else Calibration()
-        values = (seq, code, *xyz, *joints, int(elbow_down), count, joint, *astuple(c))
-        words = self._cmd.encode(values)
+    def block_words(self, mailbox: int, seq: int, code: int, *, ints: tuple[int, int] = (0, 0),
+                    args: Sequence[float] = (), session: int | None = None,
+                    check: int | None = None) -> tuple[int, list[int]]:
+        """(first holding register, words) of a command block for ``mailbox``: what the client
+        writes with one FC16 request. ``session``/``check`` default to this client's session
+        and the correct check word (tests pass others to probe the PLC)."""
+        if len(args) > 6:
+            raise ValueError(f"a command takes at most 6 REAL arguments, got {len(args)}")
+        s = self.session if session is None else session
+        c = check_word(seq, s, code, *ints) if check is None else check
+        values = (seq, s, code, *ints, *args, *([0.0] * (6 - len(args))), c)
+        b = self._commands[mailbox - 1]
+        words = b.encode(values)
         assert len(words) <= _MAX_WRITE_REGS
-        return self._cmd.address, words
+        return b.address, words
 
-    def wait_ack(self, seq: int) -> Status:
-        """Poll AckSeq (small reads, ``poll_interval_s`` apart) until it equals ``seq``; returns
-        the full status read after it."""
-        deadline = time.monotonic() + self.timeout_s
+    def _send(self, mailbox: int, code: int, ints: tuple[int, int],
+              args: Sequence[float]) -> Pending:
+        self._seq = next_seq(self._seq)
+        address, words = self.block_words(mailbox, self._seq, code, ints=ints, args=args)
+        p = Pending(mailbox, self._seq, code, check_word(self._seq, self.session, code, *ints),
+                    address, tuple(words), time.monotonic())
+        try:
+            self.plc.write_registers(address, words)
+        except ModbusIoError:
+            # it may or may not have landed: wait() reads the block back and decides
+            self._reconnect()
+        return p
+
+    def wait(self, p: Pending) -> int:
+        """Wait until the PLC answers ``p``; returns its result code. Raises
+        :class:`MailboxLost` when another session took the mailbox before the command ran."""
+        deadline = p.sent_at + self.timeout_s
+        last_look = p.sent_at
+        longest_gap = 0.0
+        next_block_check = p.sent_at + _BLOCK_RECHECK_S
         while True:
             self.polls += 1
-            if self.ack_seq() == seq:
-                return self.status()
-            if time.monotonic() > deadline:
-                st = self.status()
-                raise HandshakeTimeout(f"seq {seq} not acknowledged "
-                                       f"(AckSeq {st.ack_seq}, state {st.state})")
+            a = self._io(lambda: self.answer(p.mailbox), deadline)
+            now = time.monotonic()
+            longest_gap = max(longest_gap, now - last_look)
+            last_look = now
+            if a.ack_seq == p.seq and a.ack_check == p.check and (
+                    a.owner == self.session or p.code == CMD_CLOSE):
+                return a.result
+            # Not answered (yet). A command answered, its mailbox then freed by the lease and
+            # reused by another client, looks the same: only a client that looked at the
+            # answer more often than the lease lasts can tell the two apart.
+            if longest_gap > self._lease_s:
+                raise HandshakeLost(
+                    f"mailbox {p.mailbox}: {longest_gap:.1f} s without a look at the answer "
+                    f"(the lease is about {self._lease_s:.1f} s); seq {p.seq} (code {p.code}) "
+                    "may or may not have run: read the PLC's state before going on")
+            if a.owner not in (0, self.session):
+                raise MailboxLost(f"mailbox {p.mailbox} was taken by session {a.owner} before "
+                                  f"the PLC took seq {p.seq}")
+            if now > deadline:
+                raise HandshakeTimeout(
+                    f"mailbox {p.mailbox}: seq {p.seq} (code {p.code}) not answered in "
+                    f"{self.timeout_s:g} s (Owner {a.owner}, AckSeq {a.ack_seq}, "
+                    f"Result {a.result}); is the PLC program running?")
+            if now >= next_block_check:
+                next_block_check = now + _BLOCK_RECHECK_S
+                words = self._io(lambda: self.plc.read_holding_registers(p.address,
+                                                                        len(p.words)), deadline)
+                if tuple(words) != p.words:
+                    # overwritten before the PLC took it (a claiming client, or our own write
+                    # lost with a broken connection): the PLC answers a block once, so
+                    # writing it again cannot run it twice
+                    self.resends += 1
+                    self._io(lambda: self.plc.write_registers(p.address, list(p.words)),
+                             deadline)
+                    continue
             if self.poll_interval_s > 0.0:
                 time.sleep(self.poll_interval_s)
 
-    def command(self, code: int, *, xyz: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                joints: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                elbow_down: bool = False, count: int = 0, joint: int = 0,
-                cal: Calibration | None = None) -> Status:
-        """Issue one command and wait for its acknowledge; returns the status after it."""
-        seq = self.submit(code, xyz=xyz, joints=joints, elbow_down=elbow_down, count=count,
-                          joint=joint, cal=cal)
-        return self.wait_ack(seq)
+    def open(self) -> int:
+        """Claim a free mailbox (a Hello command); returns its number (1..MAILBOXES)."""
+        if self.mailbox is not None:
+            return self.mailbox
+        deadline = time.monotonic() + self.timeout_s
+        s0 = self._io(self.scan_count, deadline)
+        t0_end = time.monotonic()
+        while True:
+            free = [k for k, a in enumerate(self._io(self.answers, deadline), start=1)
+                    if a.owner == 0]
+            random.shuffle(free)  # clients starting together rarely pick the same one
+            for k in free:
+                try:
+                    result = self.wait(self._send(k, CMD_HELLO, (0, 0), ()))
+                except (MailboxLost, HandshakeLost):
+                    continue  # Hello runs nothing: whatever happened, try the next one
+                if result == ERR_OK:
+                    self.mailbox = k
+                    self._measure_lease(t0_end, s0, deadline)
+                    return k
+            if time.monotonic() > deadline:
+                raise NoFreeMailbox(
+                    f"all {MAILBOXES} mailboxes of the PLC at {self.plc.host}:{self.plc.port} "
+                    f"are held by other clients; a mailbox is freed by Close or after "
+                    f"{LEASE_SCANS} scans without a command from its holder")
+            time.sleep(0.05)
+
+    def _measure_lease(self, t0_end: float, s0: int, deadline: float) -> None:
+        """A lower bound on the lease in seconds: LEASE_SCANS times the shortest scan period
+        consistent with two ScanCount readings, halved for safety."""
+        while True:
+            t1 = time.monotonic()
+            s1 = self._io(self.scan_count, deadline)
+            if s1 - s0 >= 3 or time.monotonic() > deadline:
+                break
+            time.sleep(0.01)
+        scans = max(1, (s1 - s0) & 0xFFFFFFFF) + 1
+        period = max(t1 - t0_end, 0.0) / scans
+        self._lease_s = max(self._lease_s, 0.5 * LEASE_SCANS * period)
+
+    def close(self) -> None:
+        """Give the mailbox back (Close) and the batch buffer with it. Never raises for a PLC
+        that has gone away: the lease frees the mailbox then."""
+        if self.mailbox is None:
+            return
+        try:
+            self.wait(self._send(self.mailbox, CMD_CLOSE, (0, 0), ()))
+        except (HandshakeError, MailboxLost, ModbusIoError):
+            pass
+        self.mailbox = None
+        self._holds_batch = False
+
+    def command(self, code: int, *, ints: tuple[int, int] = (0, 0),
+                args: Sequence[float] = ()) -> Status:
+        """Run one command and wait for its answer; returns the status read after it, with
+        the command's result code as ``error_id``."""
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            mailbox = self.open()
+            try:
+                result = self.wait(self._send(mailbox, code, ints, args))
+            except MailboxLost:
+                # nothing ran (the lease check in wait() makes sure): claim another, resend
+                self.resends += 1
+                self.mailbox = None
+                self._holds_batch = False
+                if time.monotonic() > deadline:
+                    raise HandshakeTimeout(f"code {code}: mailbox lost again and again") from None
+                continue
+            if result == ERR_BUSY and self.retry_busy and time.monotonic() < deadline:
+                time.sleep(_BUSY_RETRY_S)
+                continue
+            return self._io(self.status, deadline)
+
+    def submit(self, code: int, *, ints: tuple[int, int] = (0, 0),
+               args: Sequence[float] = ()) -> Pending:
+        """Write one command to this client's mailbox (claimed first if needed) and return
+        without waiting; :meth:`wait` follows it up."""
+        return self._send(self.open(), code, ints, args)
+
+    def hello(self) -> Status:
+        """Claim a mailbox or renew its lease."""
+        return self.command(CMD_HELLO)
 
     def move_xyz(self, x: float, y: float, z: float, elbow_down: bool = False) -> Status:
-        return self.command(CMD_MOVE_XYZ, xyz=(x, y, z), elbow_down=elbow_down)
+        return self.command(CMD_MOVE_XYZ, ints=(int(elbow_down), 0), args=(x, y, z))
 
     def move_joints(self, base: float, shoulder: float, elbow: float) -> Status:
-        return self.command(CMD_MOVE_JOINTS, joints=(base, shoulder, elbow))
+        return self.command(CMD_MOVE_JOINTS, args=(base, shoulder, elbow))
 
     def init_pwm(self) -> Status:
         return self.command(CMD_INIT_PWM)
 
+    def relax(self) -> Status:
+        return self.command(CMD_RELAX)
+
     def set_calibration(self, joint: int, cal: Calibration) -> Status:
         """SetCalibration of joint 0 Base, 1 Shoulder, 2 Elbow; check ``error_id``."""
-        return self.command(CMD_SET_CALIBRATION, joint=joint, cal=cal)
+        c = astuple(cal)
+        return self.command(CMD_SET_CALIBRATION, ints=(joint, int(c[1])),
+                            args=(c[0], c[2], c[3], c[4], c[5]))
 
     # -- SolveBatch --------------------------------------------------------------------------
 
+    @contextmanager
+    def batch_buffer(self) -> Iterator[None]:
+        """Hold the batch buffer for the block (ReserveBatch ... ReleaseBatch)."""
+        if self._holds_batch:
+            yield
+            return
+        st = self.command(CMD_RESERVE_BATCH)
+        if st.error_id != ERR_OK:
+            raise CommandRejected(f"ReserveBatch (buffer held by mailbox {st.batch_owner})",
+                                  st.error_id)
+        self._holds_batch = True
+        try:
+            yield
+        finally:
+            if self._holds_batch and self.mailbox is not None:
+                self.command(CMD_RELEASE_BATCH)
+            self._holds_batch = False
+
     def submit_batch(self, points: Sequence[tuple[float, float, float]],
-                     elbow_down: bool = False) -> int:
-        """Write up to ``batch_max`` targets, then the command block; returns the CmdSeq."""
+                     elbow_down: bool = False) -> Pending:
+        """Write up to ``batch_max`` targets, then the SolveBatch block (not waited for); the
+        caller must hold the batch buffer (:meth:`batch_buffer`)."""
         n = len(points)
         if not 1 <= n <= self.batch_max:
             raise ValueError(f"a batch holds 1..{self.batch_max} points, got {n}")
         values = [c for p in points for c in p]
         words = self._targets.encode(values + [0.0] * (3 * self.batch_max - len(values)))
         self._write(self._targets.address, words[: 6 * n])  # 3 REALs = 6 words per point
-        return self.submit(CMD_SOLVE_BATCH, count=n, elbow_down=elbow_down)
+        return self._send(self.open(), CMD_SOLVE_BATCH, (int(elbow_down), n), ())
 
     def batch_results(self, n: int) -> list[BatchPoint]:
         """The first ``n`` SolveBatch results (read after the acknowledge)."""
@@ -337,15 +621,23 @@ class ArmControllerClient:
     def solve_batch(self, points: Sequence[tuple[float, float, float]],
                     elbow_down: bool = False) -> list[BatchPoint]:
         """One SolveBatch of up to ``batch_max`` points: write, acknowledge, read back."""
-        st = self.wait_ack(self.submit_batch(points, elbow_down))
-        if st.error_id != ERR_OK:
-            raise CommandRejected("SolveBatch", st.error_id)
-        return self.batch_results(len(points))
+        with self.batch_buffer():
+            try:
+                result = self.wait(self.submit_batch(points, elbow_down))
+            except MailboxLost as exc:
+                self.mailbox = None
+                self._holds_batch = False  # went with the mailbox
+                raise HandshakeError(f"SolveBatch: {exc}; the batch buffer went with it") \
+                    from exc
+            if result != ERR_OK:
+                raise CommandRejected("SolveBatch", result)
+            return self.batch_results(len(points))
 
     def batch_roundtrip(self, points: Sequence[tuple[float, float, float]],
                         elbow_down: bool = False) -> list[BatchPoint]:
-        """Any number of points, in SolveBatch chunks of ``batch_max``."""
+        """Any number of points, in SolveBatch chunks of ``batch_max`` (one reservation)."""
         out: list[BatchPoint] = []
-        for i in range(0, len(points), self.batch_max):
-            out += self.solve_batch(points[i: i + self.batch_max], elbow_down)
+        with self.batch_buffer():
+            for i in range(0, len(points), self.batch_max):
+                out += self.solve_batch(points[i: i + self.batch_max], elbow_down)
         return out

@@ -161,6 +161,59 @@ def controller_map() -> dict[str, Register]:
     return {r.name.upper(): r for r in derive()}
 
 
+def _header_sections(names: Sequence[str]) -> list[str]:
+    """The named sections of Controller.st's header comment, verbatim (one source)."""
+    text = CONTROLLER.read_text(encoding="utf-8")
+    header = text[text.index("(*") + 2: text.index("*)")].splitlines()
+    out: list[str] = []
+    keep = False
+    for line in header:
+        body = line[3:] if line.startswith("   ") else line.strip()
+        heading = re.match(r"^([A-Z][A-Z -]+[A-Z])(:|\b)", body)
+        if heading and not body.startswith(" ") and body.split(":")[0].split(" (")[0] == \
+                body.split(":")[0].split(" (")[0].upper():
+            keep = any(body.startswith(n) for n in names)
+        if keep and not body.startswith("====="):
+            out.append(body.rstrip())
+    while out and not out[-1]:
+        out.pop()
+    return out
+
+
+def _example(regs: dict[str, Register]) -> list[str]:
+    """A MoveJoints command in mailbox 1, word by word, from the map itself."""
+    first = regs["MBX01SEQ"]
+    seq, session, code = 1, 1234, 2
+    values = {"SEQ": seq, "SESSION": session, "CODE": code, "INT1": 0, "INT2": 0,
+              "ARG1": 10.0, "ARG2": 70.0, "ARG3": 65.0, "ARG4": 0.0, "ARG5": 0.0, "ARG6": 0.0,
+              "CHECK": (seq + session + code) & 0xFFFFFFFF}
+    words: list[int] = []
+    for field, value in values.items():
+        r = regs[f"MBX01{field}"]
+        t = r.st_type.upper()
+        words += (mm.real_to_words(float(value)) if t == "REAL" else
+                  mm.udint_to_words(int(value)) if t == "UDINT" else
+                  mm.dint_to_words(int(value)))
+    answer = regs["MBX01OWNER"]
+    return [
+        "Example: a client with session 1234 moves the joints to (10, 70, 65) deg through",
+        f"mailbox 1. One function-16 request at holding register {first.address} with "
+        f"{len(words)} registers:",
+        "",
+        "```",
+        " ".join(f"{w:04X}" for w in words),
+        "```",
+        "",
+        "(Seq 1, Session 1234, Code 2, Int1 0, Int2 0, Arg1..Arg3 10.0/70.0/65.0 as REALs, "
+        "Arg4..Arg6 0.0,",
+        f"Check 1 + 1234 + 2 = {values['CHECK']}). Then read the 8 registers at "
+        f"{answer.address} (Owner, AckSeq, Result,",
+        "AckCheck) until Owner = 1234, AckSeq = 1 and AckCheck = 1237: Result is the "
+        "command's result.",
+        "",
+    ]
+
+
 def render_markdown(regs: Sequence[Register]) -> str:
     out = [
         "# Controller register map",
@@ -169,13 +222,14 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "`python -m armbench.registermap` -- do not edit; `tests/modbus/test_registermap.py`",
         "fails when this file is stale. Addresses are 0-based Modbus addresses of OpenPLC v3",
         "(DESIGN.md §5.3); 32-bit values take two registers, most significant word first.",
+        "The protocol below is the header of `Controller.st`, copied verbatim.",
+        "`armbench.controller_client.ArmControllerClient` implements the client side.",
         "",
-        "Handshake: write the whole command block (the `Cmd...` registers) with one",
-        "function-16 request with `CmdSeq` = `AckSeq` + 1, then poll `AckSeq` until it equals",
-        "`CmdSeq`; `ErrorId` is then the command's result. `SolveBatch` targets are written",
-        "before the command block, its results read after the acknowledge. Commands, error",
-        "codes and calibration: see the header of `Controller.st`.",
+        "```text",
+        *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "RESULT CODES")),
+        "```",
         "",
+        *_example({r.name.upper(): r for r in regs}),
     ]
     groups: list[str] = []
     for r in regs:

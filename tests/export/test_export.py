@@ -274,9 +274,9 @@ def test_xml_details(project: tuple[CheckedProgram, bytes, bytes]) -> None:
     assert task.find("p:pouInstance", N).attrib == {"name": "ArmCtl",
                                                      "typeName": "ArmController"}
     prog = root.find(".//p:pou[@name='ArmController']", N)
-    cmd_seq = prog.find(".//p:variable[@name='CmdSeq']", N)
-    assert cmd_seq.get("address") == "%MD0"
-    assert cmd_seq.find("p:type/p:DINT", N) is not None
+    scans = prog.find(".//p:variable[@name='ScanCount']", N)
+    assert scans.get("address") == "%MD0"
+    assert scans.find("p:type/p:UDINT", N) is not None
     consts = prog.findall("p:interface/p:localVars[@constant='true']", N)
     assert consts and "Err" in [v.get("name") for lst in consts for v in lst]
     geo = root.find(".//p:dataType[@name='ArmGeometry']/p:baseType/p:struct", N)

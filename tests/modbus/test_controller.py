@@ -102,8 +102,8 @@ def test_non_finite_target_is_rejected(plc: ArmControllerClient, bad: float) -> 
 def test_unknown_command_is_rejected(plc: ArmControllerClient) -> None:
     before = plc.move_xyz(150.0, 0.0, 130.0)
     words = plc.channel_words()
-    for code in (0, 7, 99, -1, 65536):
-        _rejected(plc, before, plc.command(code, xyz=(1.0, 2.0, 3.0)), words,
+    for code in (0, 11, 99, -1, 65536):
+        _rejected(plc, before, plc.command(code, args=(1.0, 2.0, 3.0)), words,
                   ERR_UNKNOWN_COMMAND)
 
 
@@ -142,13 +142,15 @@ def test_relax_turns_all_channels_off(plc: ArmControllerClient) -> None:
 def test_init_pwm_publishes_the_datasheet_sequence(plc: ArmControllerClient) -> None:
     request = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address)
     assert request == [False]
-    seq = plc.submit(CMD_INIT_PWM)
+    pending = plc.submit(CMD_INIT_PWM)
     seen = False
     deadline = time.monotonic() + 2.0
-    while not seen and plc.ack_seq() != seq and time.monotonic() < deadline:
+    while not seen and plc.answer(pending.mailbox).ack_seq != pending.seq \
+            and time.monotonic() < deadline:
         seen = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [True]
     assert seen, "PwmInitRequest (%QX0.0, the PSM's init request) never rose"
-    st = plc.wait_ack(seq)
+    assert plc.wait(pending) == 0
+    st = plc.status()
     assert plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [False]
     assert st.error_id == 0 and st.pwm_ready and st.prescale == PRESCALE
     assert st.init_frames == 5
@@ -258,7 +260,8 @@ def test_batch_bad_count_is_rejected(plc: ArmControllerClient, count: int) -> No
     st_before = plc.status()
     results = plc.batch_results(1)
     words = plc.channel_words()
-    after = plc.command(CMD_SOLVE_BATCH, count=count)
+    with plc.batch_buffer():
+        after = plc.command(CMD_SOLVE_BATCH, ints=(0, count))
     _rejected(plc, before, after, words, ERR_BAD_COUNT)
     assert (after.batch_count, after.batch_failures) == (st_before.batch_count,
                                                          st_before.batch_failures)

@@ -1,10 +1,10 @@
 """Clients that go away mid-command (tests/modbus/conftest.py).
 
-The handshake's promise: nothing happens until CmdSeq changes, which only the last (atomic
-FC16) write of a command does. So a client that stops half-way through writing a command
-block leaves the PLC untouched, and the PLC keeps serving the next client; a command whose
-block arrived whole is executed even when its client disconnects at once, and a new client
-reads its results.
+The mailbox handshake's promise: a block runs only when it arrived whole (its Check matches)
+and new (its Seq not yet answered), so a client that stops half-way through writing a command
+block leaves the arm untouched, and the PLC keeps serving the next client; a command whose
+block arrived whole is executed even when its client disconnects at once, exactly once, and
+the client (or its reconnection) reads its answer.
 """
 
 from __future__ import annotations
@@ -18,13 +18,11 @@ import numpy as np
 
 from armbench.controller_client import (
     CMD_MOVE_JOINTS,
-    CMD_MOVE_XYZ,
+    ERR_BAD_CHECK,
     ArmControllerClient,
     Status,
 )
 from armbench.plant import arm
-from armbench.registermap import controller_map
-from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
 
 SCANS = 5  # scans to wait before concluding "nothing happened"
@@ -38,9 +36,9 @@ def _client(address: tuple[str, int]) -> tuple[PlcClient, ArmControllerClient]:
 
 
 def _wait_scans(ctl: ArmControllerClient, scans: int = SCANS) -> None:
-    start = ctl.status().scan_count
+    start = ctl.scan_count()
     deadline = time.monotonic() + 5.0
-    while ctl.status().scan_count - start < scans:
+    while ctl.scan_count() - start < scans:
         assert time.monotonic() < deadline, "the PLC stopped scanning"
         time.sleep(0.002)
 
@@ -53,8 +51,7 @@ def _snapshot(ctl: ArmControllerClient) -> tuple[Status, list[int]]:
 def _unchanged(ctl: ArmControllerClient, before: tuple[Status, list[int]]) -> None:
     st, words = _snapshot(ctl)
     b = before[0]
-    assert (st.ack_seq, st.error_id, st.joints_deg, st.echo_mm, st.pulses_us) == \
-        (b.ack_seq, b.error_id, b.joints_deg, b.echo_mm, b.pulses_us)
+    assert (st.joints_deg, st.echo_mm, st.pulses_us) == (b.joints_deg, b.echo_mm, b.pulses_us)
     assert words == before[1]
 
 
@@ -71,27 +68,29 @@ def _nothing_ran(address: tuple[str, int], before: tuple[Status, list[int]]) -> 
 
 def _serves_a_new_client(address: tuple[str, int]) -> None:
     modbus, ctl = _client(address)
-    try:
+    with modbus, ctl:
         target = (155.0, -12.0, 118.0)
         st = ctl.move_xyz(*target)
         assert st.error_id == 0
         assert math.dist(target, st.echo_mm) <= 0.05
         assert math.dist(target, arm.forward(*st.joints_deg)) <= 0.05
-    finally:
-        modbus.close()
 
 
 def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int]) -> None:
     modbus, ctl = _client(plc_address)
     ctl.move_xyz(150.0, 0.0, 120.0)
     before = _snapshot(ctl)
-    # A MoveXyz to another point, written the wrong way: FC06, one register at a time; the
-    # client dies after CmdCode and one half of CmdX -- CmdSeq never written.
-    cmap = controller_map()
-    for name, value in (("CMDCODE", mm.dint_to_words(CMD_MOVE_XYZ)),
-                        ("CMDX", mm.real_to_words(180.0)[:1])):
-        for i, word in enumerate(value):
-            modbus.write_register(cmap[name].address + i, word)
+    # A MoveJoints to another pose, written the wrong way: FC06, one register at a time; the
+    # client dies after the new Seq, Code and one half of Arg1 -- Check never written.
+    address, words = ctl.block_words(ctl.open(), before[0].ack_seq + 1, CMD_MOVE_JOINTS,
+                                     args=(30.0, 80.0, 70.0))
+    for i in (0, 1, 4, 5, 10):  # Seq, Code, first word of Arg1
+        modbus.write_register(address + i, words[i])
+    _wait_scans(ctl)
+    mailbox = ctl.mailbox
+    assert mailbox is not None
+    answer = ctl.answer(mailbox)  # the owner is told: the block was not whole
+    assert (answer.ack_seq, answer.result) == (before[0].ack_seq + 1, ERR_BAD_CHECK)
     modbus.close()
 
     _nothing_ran(plc_address, before)
@@ -99,41 +98,52 @@ def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int
 
 def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) -> None:
     modbus, ctl = _client(plc_address)
-    try:
+    with modbus, ctl:
         ctl.move_xyz(150.0, 0.0, 120.0)
         before = _snapshot(ctl)
-        address, words = ctl.command_words(before[0].ack_seq + 1, CMD_MOVE_JOINTS,
-                                           joints=(30.0, 80.0, 70.0))
-    finally:
-        modbus.close()
-    # The same FC16 request the client would send, cut off half-way through its data.
-    pdu = struct.pack(">BHHB", 16, address, len(words), 2 * len(words))
-    pdu += struct.pack(f">{len(words)}H", *words)
-    frame = struct.pack(">HHHB", 0x4242, 0, len(pdu) + 1, 1) + pdu
-    with socket.create_connection(plc_address, timeout=3.0) as raw:
-        raw.sendall(frame[: len(frame) // 2])
-    # The raw connection gets no reply, so nothing shows when the PLC has accepted it. OpenPLC
-    # v3's server polls accept() every 100 ms and, when two connections are pending at once,
-    # can hand both threads the same socket (a known OpenPLC race), so the next client would
-    # be lost. Give it one accept period (plus margin) to take the raw connection first; the
-    # soft PLC does not need this, and it changes nothing in what is checked.
-    time.sleep(ACCEPT_PERIOD_S)
+        address, words = ctl.block_words(ctl.open(), before[0].ack_seq + 1, CMD_MOVE_JOINTS,
+                                         args=(30.0, 80.0, 70.0))
+        # The same FC16 request the client would send, cut off half-way through its data.
+        pdu = struct.pack(">BHHB", 16, address, len(words), 2 * len(words))
+        pdu += struct.pack(f">{len(words)}H", *words)
+        frame = struct.pack(">HHHB", 0x4242, 0, len(pdu) + 1, 1) + pdu
+        with socket.create_connection(plc_address, timeout=3.0) as raw:
+            raw.sendall(frame[: len(frame) // 2])
+        # The raw connection gets no reply, so nothing shows when the PLC has accepted it.
+        # OpenPLC v3's server polls accept() every 100 ms and, when two connections are
+        # pending at once, can hand both threads the same socket (a known OpenPLC race), so
+        # the next client would be lost. Give it one accept period (plus margin) to take the
+        # raw connection first; the soft PLC does not need this.
+        time.sleep(ACCEPT_PERIOD_S)
+        _wait_scans(ctl)
+        _unchanged(ctl, before)
     _nothing_ran(plc_address, before)
+
+
+def test_disconnect_right_after_sending_a_command(plc_address: tuple[str, int]) -> None:
+    """The block arrived whole: it runs once, and the client's reconnection finds its answer."""
+    modbus, ctl = _client(plc_address)
+    with modbus, ctl:
+        ctl.move_joints(0.0, 70.0, 65.0)
+        answered = ctl.status().commands_answered
+        pending = ctl.submit(CMD_MOVE_JOINTS, args=(20.0, 75.0, 60.0))
+        modbus.close()  # gone before the answer; the next request reconnects
+        assert ctl.wait(pending) == 0
+        st = ctl.status()
+        assert st.joints_deg == (20.0, 75.0, 60.0)
+        assert st.commands_answered == answered + 1  # the move, nothing else, ran once
 
 
 def test_disconnect_right_after_sending_a_batch(plc_address: tuple[str, int]) -> None:
     targets = [(140.0 + i, -20.0 + 2.0 * i, 100.0 + 1.5 * i) for i in range(20)]
     modbus, ctl = _client(plc_address)
-    seq = ctl.submit_batch(targets)  # written, not waited for
-    modbus.close()
-
-    modbus, ctl = _client(plc_address)
-    try:
-        st = ctl.wait_ack(seq)
-        assert st.error_id == 0 and st.batch_count == len(targets) and st.batch_failures == 0
-        res = ctl.batch_results(len(targets))
-    finally:
+    with modbus, ctl, ctl.batch_buffer():
+        pending = ctl.submit_batch(targets)  # written, not waited for
         modbus.close()
+        assert ctl.wait(pending) == 0
+        st = ctl.status()
+        assert st.batch_count == len(targets) and st.batch_failures == 0
+        res = ctl.batch_results(len(targets))
     want = np.array(targets)
     ref = arm.forward_batch(np.array([r.joints_deg for r in res]))
     assert np.max(np.linalg.norm(ref - want, axis=1)) <= 0.05

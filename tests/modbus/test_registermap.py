@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from armbench import registermap
+from armbench.controller_client import MAILBOXES
 
 
 def test_register_map_doc_is_current() -> None:
@@ -11,19 +12,36 @@ def test_register_map_doc_is_current() -> None:
     assert actual == expected, "stale: run `.venv/bin/python -m armbench.registermap`"
 
 
-def test_command_block_fits_one_fc16_write() -> None:
+def test_each_mailbox_block_fits_one_fc16_write() -> None:
     regs = registermap.controller_map()
-    cmd = [r for r in regs.values() if r.name.startswith("Cmd")]
-    assert all(r.table == "holding" and r.location.startswith("%MD") for r in cmd)
-    span = max(r.address + r.count for r in cmd) - min(r.address for r in cmd)
-    assert span <= 123  # FC16 limit
+    for k in range(1, MAILBOXES + 1):
+        block = [r for r in regs.values() if r.name.upper().startswith(f"MBX{k:02d}")]
+        assert len(block) == 16  # 12 command fields + 4 answer fields
+        cmd = [r for r in block if r.name[5:] in
+               ("Seq", "Session", "Code", "Int1", "Int2", "Arg1", "Arg2", "Arg3", "Arg4",
+                "Arg5", "Arg6", "Check")]
+        assert len(cmd) == 12
+        assert all(r.table == "holding" and r.location.startswith("%MD") for r in block)
+        span = max(r.address + r.count for r in cmd) - min(r.address for r in cmd)
+        assert span == 24 <= 123  # contiguous, one FC16 request
+        ans = [r for r in block if r not in cmd]
+        assert max(r.address + r.count for r in ans) - min(r.address for r in ans) == 8
+
+
+def test_no_two_variables_share_a_register() -> None:
+    taken: dict[tuple[str, int], str] = {}
+    for r in registermap.controller_map().values():
+        for a in range(r.address, r.address + r.count):
+            assert (r.table, a) not in taken, f"{r.name} overlaps {taken[(r.table, a)]}"
+            taken[(r.table, a)] = r.name
 
 
 def test_addresses_follow_openplc_map() -> None:
     regs = registermap.controller_map()
-    assert regs["CMDSEQ"].address == 2048 and regs["CMDSEQ"].count == 2
-    assert regs["CMDX"].address == 2048 + 2 * 2
-    assert regs["ACKSEQ"].address == 2048 + 2 * 32
+    assert regs["SCANCOUNT"].address == 2048 and regs["SCANCOUNT"].count == 2
+    assert regs["MBX01OWNER"].address == 2048 + 2 * 64
+    assert regs["MBX01SEQ"].address == 2048 + 2 * 128
+    assert regs["MBX16CHECK"].address == 2048 + 2 * (128 + 15 * 16 + 11)
     assert regs["PWMINITREQUEST"].table == "coil" and regs["PWMINITREQUEST"].address == 0
     assert regs["PWMDRIVERFAULT"].table == "discrete" and regs["PWMDRIVERFAULT"].address == 1
     assert regs["INITREG1"].address == 1024
@@ -38,6 +56,9 @@ def test_batch_blocks_are_regular_and_match_the_program() -> None:
     n = sum(1 for name in regs if name.startswith("BATCHX"))
     source = registermap.CONTROLLER.read_text(encoding="utf-8")
     assert f"BatchMax : DINT := {n};" in source
+    assert f"MailboxMax : DINT := {MAILBOXES};" in source
+    assert f"MbxIn : ARRAY[1..{MAILBOXES}] OF MailboxCommand;" in source
+    assert f"MbxState : ARRAY[1..{MAILBOXES}] OF MailboxState;" in source
     assert f"BatchIn : ARRAY[1..{n}] OF Coordinates;" in source
     assert f"BatchOut : ARRAY[1..{n}] OF ArmPointResult;" in source
     first_target = regs["BATCHX01"].address

@@ -42,5 +42,5 @@ def plc_address(request: pytest.FixtureRequest) -> Iterator[tuple[str, int]]:
 @pytest.fixture
 def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
     host, port = plc_address
-    with PlcClient(host, port) as client:
-        yield ArmControllerClient(client)
+    with PlcClient(host, port) as client, ArmControllerClient(client) as ctl:
+        yield ctl

@@ -8,10 +8,11 @@ between minor releases, so every use of it is kept here. Written against pymodbu
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from pymodbus.client import ModbusTcpClient
+from pymodbus.exceptions import ModbusException
 from pymodbus.pdu import ModbusPDU
 
 from . import modbus_map as mm
@@ -62,7 +63,13 @@ class PlcClient:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _check(self, response: ModbusPDU, function: int) -> ModbusPDU:
+    def _check(self, request: Callable[[], ModbusPDU], function: int) -> ModbusPDU:
+        """Send ``request``; pymodbus's own errors (connection lost, no answer) become
+        :class:`ModbusIoError`, a Modbus exception reply :class:`ModbusError`."""
+        try:
+            response = request()
+        except ModbusException as exc:
+            raise ModbusIoError(f"{self.host}:{self.port}: function {function}: {exc}") from exc
         if response.isError():
             raise ModbusError(function, response.exception_code)
         return response
@@ -70,35 +77,40 @@ class PlcClient:
     # -- raw tables ------------------------------------------------------------------------
 
     def read_coils(self, address: int, count: int = 1) -> list[bool]:
-        r = self._client.read_coils(address, count=count, device_id=self.device_id)
+        r = self._check(lambda: self._client.read_coils(address, count=count,
+                                                       device_id=self.device_id), 1)
         # pymodbus pads bits to a whole byte; the caller asked for exactly `count`.
-        return list(self._check(r, 1).bits[:count])
+        return list(r.bits[:count])
 
     def read_discrete_inputs(self, address: int, count: int = 1) -> list[bool]:
-        r = self._client.read_discrete_inputs(address, count=count, device_id=self.device_id)
-        return list(self._check(r, 2).bits[:count])
+        r = self._check(lambda: self._client.read_discrete_inputs(
+            address, count=count, device_id=self.device_id), 2)
+        return list(r.bits[:count])
 
     def read_holding_registers(self, address: int, count: int = 1) -> list[int]:
-        r = self._client.read_holding_registers(address, count=count, device_id=self.device_id)
-        return list(self._check(r, 3).registers)
+        r = self._check(lambda: self._client.read_holding_registers(
+            address, count=count, device_id=self.device_id), 3)
+        return list(r.registers)
 
     def read_input_registers(self, address: int, count: int = 1) -> list[int]:
-        r = self._client.read_input_registers(address, count=count, device_id=self.device_id)
-        return list(self._check(r, 4).registers)
+        r = self._check(lambda: self._client.read_input_registers(
+            address, count=count, device_id=self.device_id), 4)
+        return list(r.registers)
 
     def write_coil(self, address: int, value: bool) -> None:
-        self._check(self._client.write_coil(address, value, device_id=self.device_id), 5)
+        self._check(lambda: self._client.write_coil(address, value, device_id=self.device_id), 5)
 
     def write_register(self, address: int, value: int) -> None:
-        self._check(self._client.write_register(address, value, device_id=self.device_id), 6)
+        self._check(lambda: self._client.write_register(address, value,
+                                                        device_id=self.device_id), 6)
 
     def write_coils(self, address: int, values: Sequence[bool]) -> None:
-        r = self._client.write_coils(address, list(values), device_id=self.device_id)
-        self._check(r, 15)
+        self._check(lambda: self._client.write_coils(address, list(values),
+                                                     device_id=self.device_id), 15)
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
-        r = self._client.write_registers(address, list(values), device_id=self.device_id)
-        self._check(r, 16)
+        self._check(lambda: self._client.write_registers(address, list(values),
+                                                         device_id=self.device_id), 16)
 
     # -- located variables -----------------------------------------------------------------
 
