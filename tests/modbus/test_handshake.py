@@ -1,0 +1,325 @@
+"""The mailbox handshake's rules and the controller's self-defence (tests/modbus/conftest.py:
+soft PLC by default, a real PLC with --plc-host).
+
+Each test writes raw blocks the way a careless or hostile client would and checks what the
+header of Controller.st promises: a block runs only when whole and new, once, for its owner;
+every answer names the block it answers; no register a client writes can wedge, replay or
+spoof the controller beyond the next scan.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from armbench.controller_client import (
+    CMD_CLOSE,
+    CMD_HELLO,
+    CMD_INIT_PWM,
+    CMD_MOVE_JOINTS,
+    CMD_RESERVE_BATCH,
+    CMD_SOLVE_BATCH,
+    ERR_BAD_CHECK,
+    ERR_BAD_SEQUENCE,
+    ERR_BUSY,
+    ERR_NOT_BATCH_OWNER,
+    ERR_OK,
+    MAILBOXES,
+    ArmControllerClient,
+    NoFreeMailbox,
+    check_word,
+    next_seq,
+)
+from armbench.registermap import controller_map
+from armbench.softplc import modbus_map as mm
+from armbench.softplc.modbus_client import PlcClient
+
+SCANS = 3
+
+
+def _wait_scans(ctl: ArmControllerClient, scans: int = SCANS) -> None:
+    start = ctl.scan_count()
+    deadline = time.monotonic() + 5.0
+    while ctl.scan_count() - start < scans:
+        assert time.monotonic() < deadline, "the PLC stopped scanning"
+        time.sleep(0.002)
+
+
+@pytest.fixture
+def second(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
+    """A second client on its own connection, with its own session and mailbox."""
+    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as ctl:
+        yield ctl
+
+
+def _seq(plc: ArmControllerClient) -> int:
+    """The mailbox's answered Seq: the next block of this client must carry next_seq()."""
+    assert plc.mailbox is not None
+    return plc.answer(plc.mailbox).ack_seq
+
+
+def test_check_word_matches_the_documented_formula() -> None:
+    # Seq + Session + Code + Int1 + Int2 modulo 2^32, negative DINTs as two's complement
+    assert check_word(1, 1234, 2, 0, 0) == 1237
+    assert check_word(5, -1, 1, 0, 0) == 5  # -1 is 0xFFFFFFFF: wraps to 5 + 1 - 1
+    assert check_word(2**31 - 1, 2**31 - 1, 2, 0, 0) == 0  # 2 * (2^31 - 1) + 2 = 2^32
+
+
+def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
+    """The register-map page's example, word for word, does what the page says."""
+    free = [k for k, a in enumerate(plc.answers(), start=1) if a.owner == 0]
+    session = 1234
+    if any(a.owner == session for a in plc.answers()):
+        pytest.skip("session 1234 is in use on this PLC")
+    k = free[0]
+    base = controller_map()[f"MBX{k:02d}SEQ"].address
+    words = [0x0000, 0x0001, 0x0000, 0x04D2, 0x0000, 0x0002, 0, 0, 0, 0,
+             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x0000, 0x04D5]
+    plc.plc.write_registers(base, words)
+    deadline = time.monotonic() + 2.0
+    while plc.answer(k).ack_seq != 1 and time.monotonic() < deadline:
+        time.sleep(0.002)
+    a = plc.answer(k)
+    assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 1237)
+    assert plc.status().joints_deg == (10.0, 70.0, 65.0)
+    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0x0000, 0x04DD]
+    plc.plc.write_registers(base, close)
+    while plc.answer(k).owner != 0 and time.monotonic() < deadline + 2.0:
+        time.sleep(0.002)
+    assert plc.answer(k).owner == 0
+
+
+def test_rewriting_only_seq_runs_nothing(plc: ArmControllerClient) -> None:
+    plc.move_joints(0.0, 70.0, 65.0)
+    before = plc.status()
+    assert plc.mailbox is not None
+    seq_reg = controller_map()[f"MBX{plc.mailbox:02d}SEQ"]
+    answered = _seq(plc)
+    # FC16 of Seq alone: the stale MoveJoints arguments and Check do not match a new Seq
+    plc.plc.write_registers(seq_reg.address, mm.dint_to_words(next_seq(answered)))
+    _wait_scans(plc)
+    a = plc.answer(plc.mailbox)
+    assert (a.ack_seq, a.result) == (next_seq(answered), ERR_BAD_CHECK)
+    # FC06 of the low word only
+    plc.plc.write_register(seq_reg.address + 1, (next_seq(next_seq(answered))) & 0xFFFF)
+    _wait_scans(plc)
+    assert plc.answer(plc.mailbox).result == ERR_BAD_CHECK
+    after = plc.status()
+    assert (after.joints_deg, after.pulses_us) == (before.joints_deg, before.pulses_us)
+    assert after.commands_answered - before.commands_answered == 2  # both told, none run
+
+
+def test_a_burst_of_commands_is_never_silently_skipped(plc: ArmControllerClient) -> None:
+    """100 MoveJoints written back to back without waiting: every one runs, or the client is
+    told with BadSequence that some did not (the PLC sees only the last block of a scan)."""
+    plc.move_joints(0.0, 70.0, 65.0)
+    assert plc.mailbox is not None
+    seq = _seq(plc)
+    answered = plc.status().commands_answered
+    poses = [(-40.0 + 0.8 * i, 70.0, 65.0) for i in range(100)]
+    for pose in poses:
+        seq = next_seq(seq)
+        address, words = plc.block_words(plc.mailbox, seq, CMD_MOVE_JOINTS, args=pose)
+        plc.plc.write_registers(address, words)
+    _wait_scans(plc)
+    a = plc.answer(plc.mailbox)
+    st = plc.status()
+    assert a.ack_seq == seq
+    ran = st.commands_answered - answered
+    if a.result == ERR_OK:
+        assert ran == 100, "the last one ran in sequence, so every one before it did"
+    else:
+        assert a.result == ERR_BAD_SEQUENCE
+        assert ran < 100
+    assert st.joints_deg in poses  # whatever ran was one of the commanded poses
+
+
+def test_a_foreign_block_in_an_owned_mailbox_is_not_run(plc: ArmControllerClient,
+                                                        second: ArmControllerClient) -> None:
+    plc.move_joints(0.0, 70.0, 65.0)
+    second.hello()
+    assert plc.mailbox is not None and second.mailbox is not None
+    before = plc.status()
+    theirs = second.answer(second.mailbox)
+    # the first client writes a whole, valid block into the second client's mailbox
+    address, words = plc.block_words(second.mailbox, next_seq(theirs.ack_seq), CMD_MOVE_JOINTS,
+                                     args=(30.0, 80.0, 70.0))
+    plc.plc.write_registers(address, words)
+    _wait_scans(plc)
+    after = plc.status()
+    assert second.answer(second.mailbox) == theirs  # not answered, owner unchanged
+    assert after.joints_deg == before.joints_deg
+    assert after.commands_ignored == before.commands_ignored + 1
+    # the owner is not disturbed: its next command runs
+    assert second.move_joints(5.0, 75.0, 60.0).joints_deg == (5.0, 75.0, 60.0)
+
+
+def test_overwritten_pending_command_is_written_again(plc: ArmControllerClient,
+                                                      second: ArmControllerClient) -> None:
+    """A foreign block lands on top of the owner's pending one before the PLC takes it: the
+    owner notices, writes its block again, and it runs once."""
+    second.hello()
+    assert second.mailbox is not None
+    # Over Modbus nothing guarantees that the overwrite lands before the PLC's next scan, so
+    # both orders are allowed: taken first (the foreign block is then ignored), or overwritten
+    # first (the owner's re-check finds a foreign block and writes its own again).
+    pending = second.submit(CMD_MOVE_JOINTS, args=(-7.0, 71.0, 64.0))
+    address, words = plc.block_words(second.mailbox, 77, CMD_HELLO, session=424242)
+    plc.plc.write_registers(address, words)
+    answered = second.status().commands_answered
+    assert second.wait(pending) == ERR_OK
+    st = second.status()
+    assert st.joints_deg == (-7.0, 71.0, 64.0)
+    # ran exactly once whether or not the PLC took it before the overwrite
+    assert st.commands_answered - answered <= 1
+
+
+def test_commands_of_others_are_busy_while_init_pwm_runs(plc: ArmControllerClient,
+                                                         second: ArmControllerClient) -> None:
+    second.retry_busy = False
+    second.hello()
+    pending = plc.submit(CMD_INIT_PWM)
+    saw_busy = False
+    deadline = time.monotonic() + 2.0
+    while plc.answer(pending.mailbox).ack_seq != pending.seq and time.monotonic() < deadline:
+        st = second.move_joints(0.0, 70.0, 65.0)
+        saw_busy |= st.error_id == ERR_BUSY
+    assert plc.wait(pending) == ERR_OK
+    assert saw_busy, "InitPwm lasts several scans: a move meanwhile must be answered Busy"
+    assert second.move_joints(0.0, 70.0, 65.0).error_id == ERR_OK  # and runs afterwards
+
+
+def test_batch_buffer_belongs_to_one_mailbox(plc: ArmControllerClient,
+                                             second: ArmControllerClient) -> None:
+    second.retry_busy = False
+    with plc.batch_buffer():
+        assert plc.status().batch_owner == plc.mailbox
+        assert second.command(CMD_RESERVE_BATCH).error_id == ERR_BUSY
+        assert second.command(CMD_SOLVE_BATCH, ints=(0, 1)).error_id == ERR_NOT_BATCH_OWNER
+        res = plc.solve_batch([(150.0, 0.0, 120.0)])
+        assert res[0].error_id == 0
+    assert plc.status().batch_owner == 0
+    # released: the second client gets it, and Close gives it back too
+    assert second.command(CMD_RESERVE_BATCH).error_id == ERR_OK
+    assert second.status().batch_owner == second.mailbox
+    second.close()
+    assert plc.status().batch_owner == 0
+
+
+def test_close_frees_the_mailbox_and_a_new_session_can_claim_it(
+        plc: ArmControllerClient, second: ArmControllerClient) -> None:
+    second.hello()
+    k = second.mailbox
+    assert k is not None
+    second.close()
+    assert second.answer(k).owner == 0
+    # a raw claim of that very mailbox by a new session, with any Seq
+    address, words = plc.block_words(k, 999, CMD_HELLO, session=777001)
+    plc.plc.write_registers(address, words)
+    _wait_scans(plc)
+    a = plc.answer(k)
+    assert (a.owner, a.ack_seq, a.result) == (777001, 999, ERR_OK)
+    address, words = plc.block_words(k, 1000, CMD_CLOSE, session=777001)
+    plc.plc.write_registers(address, words)
+    _wait_scans(plc)
+    assert plc.answer(k).owner == 0
+
+
+def test_all_mailboxes_taken_gives_a_clear_error(plc_address: tuple[str, int]) -> None:
+    with PlcClient(*plc_address) as modbus:
+        clients = [ArmControllerClient(modbus, timeout_s=2.0) for _ in range(MAILBOXES)]
+        try:
+            taken = sum(1 for a in clients[0].answers() if a.owner != 0)
+            for c in clients[: MAILBOXES - taken]:
+                c.open()
+            late = ArmControllerClient(modbus, timeout_s=0.3)
+            with pytest.raises(NoFreeMailbox, match=f"all {MAILBOXES} mailboxes"):
+                late.open()
+            clients[0].close()
+            late.timeout_s = 2.0
+            assert late.hello().error_id == ERR_OK
+            late.close()
+        finally:
+            for c in clients:
+                c.close()
+
+
+# -- self-defence: registers the program writes -------------------------------------------------
+
+_CLIENT_WRITTEN = ("MBX", "BATCHX", "BATCHY", "BATCHZ")  # command blocks, batch targets
+
+
+def _outputs() -> list[str]:
+    """Every holding register the program writes (all but the client-written blocks)."""
+    regs = controller_map()
+    return [name for name, r in regs.items() if r.table == "holding"
+            and not (name.startswith(_CLIENT_WRITTEN) and not name.endswith(
+                ("OWNER", "ACKSEQ", "RESULT", "ACKCHECK")))]
+
+
+def _read_outputs(plc: ArmControllerClient, names: list[str]) -> dict[str, list[int]]:
+    regs = controller_map()
+    return {n: plc.plc.read_holding_registers(regs[n].address, regs[n].count) for n in names}
+
+
+def test_every_output_heals_within_a_scan(plc: ArmControllerClient) -> None:
+    plc.init_pwm()
+    plc.move_xyz(150.0, 10.0, 120.0)
+    plc.solve_batch([(150.0, 0.0, 120.0), (1000.0, 0.0, 0.0)])
+    names = _outputs()
+    assert len(names) > 300  # status, calibration, answers, results, init frames, channels
+    moving = {"SCANCOUNT"}
+    before = _read_outputs(plc, names)
+    regs = controller_map()
+    for n in names:  # spoof every one of them
+        r = regs[n]
+        plc.plc.write_registers(r.address, [0x7FC0 if i == 0 else 0x1234 for i in range(r.count)])
+    plc.plc.write_coil(regs["PWMINITREQUEST"].address, True)
+    _wait_scans(plc, 2)
+    after = _read_outputs(plc, names)
+    diff = [n for n in names if n not in moving and after[n] != before[n]]
+    assert diff == []
+    assert plc.plc.read_coils(regs["PWMINITREQUEST"].address) == [False]
+
+
+def test_spoofed_state_cannot_wedge_or_replay(plc: ArmControllerClient) -> None:
+    plc.init_pwm()
+    st = plc.move_joints(0.0, 70.0, 65.0)
+    assert plc.mailbox is not None
+    regs = controller_map()
+    answered = st.commands_answered
+    # Busy state, a zero AckSeq (the old way to replay the last command) and a fake PwmReady
+    plc.plc.write_registers(regs["CTLSTATE"].address, mm.dint_to_words(1))
+    plc.plc.write_registers(regs["BUSYMAILBOX"].address, mm.dint_to_words(plc.mailbox))
+    plc.plc.write_registers(regs[f"MBX{plc.mailbox:02d}ACKSEQ"].address, mm.dint_to_words(0))
+    _wait_scans(plc)
+    st = plc.status()
+    assert st.state == 0 and st.busy_mailbox == 0
+    assert st.commands_answered == answered  # nothing replayed
+    assert plc.move_joints(10.0, 70.0, 65.0).error_id == ERR_OK  # not wedged
+
+
+def test_bad_calibration_then_an_ordinary_move_cannot_jump(plc: ArmControllerClient) -> None:
+    """The audit's case: limits 0..20,000 us / +-1e30 deg were accepted, then MoveJoints(10,
+    70, 65) put out an 11.7 ms pulse. Now they are refused and the move is normal."""
+    from armbench.controller_client import Calibration
+
+    saved = plc.calibration()
+    for cal in (Calibration(min_pulse_us=0.0, max_pulse_us=20000.0),
+                Calibration(min_angle_deg=-1.0e30, max_angle_deg=1.0e30),
+                Calibration(min_pulse_us=400.0), Calibration(max_pulse_us=2600.0),
+                Calibration(min_angle_deg=-95.0), Calibration(zero_offset_deg=1.0e6)):
+        for joint in range(3):
+            st = plc.set_calibration(joint, cal)
+            assert st.error_id != ERR_OK, (joint, cal)
+    assert plc.calibration() == saved
+    st = plc.move_joints(10.0, 70.0, 65.0)
+    assert st.error_id == ERR_OK
+    zero = [c.zero_offset_deg for c in saved]
+    for ch, angle in enumerate((10.0, 70.0, 65.0)):
+        want = 1500.0 + (angle - zero[ch]) * 1000.0 / 120.0  # MG996R: 1..2 ms = -60..+60 deg
+        assert math.isclose(st.pulses_us[ch], want, abs_tol=1e-3)
+        assert 500.0 <= st.pulses_us[ch] <= 2500.0
