@@ -299,6 +299,7 @@ class ArmControllerClient:
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
         self._holds_batch = False
         self.polls = 0  # answer reads spent waiting for acknowledges
+        self.answered = 0  # blocks of this client the PLC answered (Busy retries included)
         self.resends = 0  # commands written again (block overwritten, mailbox lost, reconnect)
         self.reconnects = 0
 
@@ -444,6 +445,7 @@ class ArmControllerClient:
             last_look = now
             if a.ack_seq == p.seq and a.ack_check == p.check and (
                     a.owner == self.session or p.code == CMD_CLOSE):
+                self.answered += 1
                 return a.result
             # Not answered (yet). A command answered, its mailbox then freed by the lease and
             # reused by another client, looks the same: only a client that looked at the
