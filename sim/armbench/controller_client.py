@@ -280,7 +280,9 @@ class ArmControllerClient:
             1, 2**31)
         self.mailbox: int | None = None
         self._seq = 0
-        self._lease_s = 1.0  # until measured by open(): the lease lasts >= 1000 scans >= 1 s
+        # A lower bound on the lease in seconds, measured by open(); until then (the claim
+        # itself, where a Hello cannot do harm) 1000 scans of at least 1 ms.
+        self._lease_s = 1.0
         self._commands = [_Block.of(f"Mbx{k:02d}{f}" for f in _COMMAND_FIELDS)
                           for k in range(1, MAILBOXES + 1)]
         self._answers = [_Block.of(f"Mbx{k:02d}{f}" for f in _ANSWER_FIELDS)
@@ -516,7 +518,7 @@ class ArmControllerClient:
             time.sleep(0.01)
         scans = max(1, (s1 - s0) & 0xFFFFFFFF) + 1
         period = max(t1 - t0_end, 0.0) / scans
-        self._lease_s = max(self._lease_s, 0.5 * LEASE_SCANS * period)
+        self._lease_s = 0.5 * LEASE_SCANS * period
 
     def close(self) -> None:
         """Give the mailbox back (Close) and the batch buffer with it. Never raises for a PLC

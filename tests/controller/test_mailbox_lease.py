@@ -1,0 +1,106 @@
+"""Mailbox leases on the soft PLC with a fast clock: the controller's 10 ms task is stepped as
+fast as the host runs it (simulated time), so the 1000-scan lease passes in well under a
+second of wall time. Not part of the Modbus suite: a real PLC takes the full 10 s."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from armbench.controller_client import (
+    CMD_MOVE_JOINTS,
+    CMD_RESERVE_BATCH,
+    ERR_OK,
+    LEASE_SCANS,
+    ArmControllerClient,
+    HandshakeLost,
+)
+from armbench.registermap import SOURCES
+from armbench.softplc.loader import load_program
+from armbench.softplc.modbus_client import PlcClient
+from armbench.softplc.modbus_server import ModbusServer
+from armbench.softplc.scan import SoftPlc
+
+TASK_NS = 10_000_000
+
+
+@pytest.fixture(scope="module")
+def fast_plc() -> Iterator[tuple[str, int]]:
+    prog = load_program(list(SOURCES))
+    plc = SoftPlc(prog)
+    server = ModbusServer(prog.image, plc.lock, port=0)
+    server.start()
+    stop = threading.Event()
+
+    def run() -> None:
+        now = 0
+        plc.run()
+        while not stop.is_set():
+            plc.step(now)
+            now += TASK_NS
+            time.sleep(0.0002)  # about 5,000 scans/s: room for the Modbus threads
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield "127.0.0.1", server.port
+    finally:
+        stop.set()
+        thread.join(5.0)
+        server.stop()
+
+
+def _wait_scans(ctl: ArmControllerClient, scans: int) -> None:
+    start = ctl.scan_count()
+    deadline = time.monotonic() + 20.0
+    while ctl.scan_count() - start < scans:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+
+
+def test_silent_owner_loses_mailbox_and_batch_buffer(fast_plc: tuple[str, int]) -> None:
+    with PlcClient(*fast_plc) as modbus:
+        a = ArmControllerClient(modbus)
+        assert a.command(CMD_RESERVE_BATCH).error_id == ERR_OK
+        k = a.mailbox
+        assert k is not None and a.status().batch_owner == k
+        _wait_scans(a, LEASE_SCANS // 2)
+        assert a.answer(k).owner == a.session  # half a lease: still held
+        _wait_scans(a, LEASE_SCANS // 2 + 10)
+        assert a.answer(k).owner == 0
+        assert a.status().batch_owner == 0
+        # a client that comes back after its lease simply claims a mailbox again
+        assert a.move_joints(1.0, 70.0, 65.0).error_id == ERR_OK
+
+
+def test_renewed_lease_is_kept(fast_plc: tuple[str, int]) -> None:
+    with PlcClient(*fast_plc) as modbus, ArmControllerClient(modbus) as a:
+        a.hello()
+        k = a.mailbox
+        for _ in range(3):
+            _wait_scans(a, LEASE_SCANS * 2 // 3)
+            assert a.hello().error_id == ERR_OK
+            assert a.mailbox == k and a.answer(k).owner == a.session
+
+
+def test_a_client_silent_past_the_lease_is_told_it_cannot_know(
+        fast_plc: tuple[str, int]) -> None:
+    """Its command ran, the mailbox expired and was taken over, and only then did it look:
+    the client must not guess (resend = run twice, give up = maybe lost)."""
+    with PlcClient(*fast_plc) as modbus:
+        a = ArmControllerClient(modbus)
+        a.hello()
+        k = a.mailbox
+        assert k is not None
+        pending = a.submit(CMD_MOVE_JOINTS, args=(3.0, 70.0, 65.0))
+        _wait_scans(a, LEASE_SCANS + 20)  # answered, then the lease ran out
+        b = ArmControllerClient(modbus)
+        address, words = b.block_words(k, 5, 10)  # b claims exactly that mailbox (Hello)
+        modbus.write_registers(address, words)
+        _wait_scans(b, 3)
+        assert b.answer(k).owner == b.session
+        with pytest.raises(HandshakeLost, match="may or may not have run"):
+            a.wait(pending)
