@@ -236,7 +236,7 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
               f"max {max(errs):.3f} mm, mean {sum(errs) / len(errs):.3f} mm\n")
         write(f"|commanded - FK echo| (PLC REAL arithmetic): max {max(echo_errs):.5f} mm\n")
     write(f"throughput: {points / result.elapsed_s:.1f} points/s ({result.elapsed_s:.2f} s, "
-          f"{ctl.polls} AckSeq polls, poll interval {poll_ms:g} ms); "
+          f"{ctl.polls} answer polls, poll interval {poll_ms:g} ms); "
           f"simulated servo settle time {plant.settle_s:.1f} s\n")
     for s in stats.values():
         write(f"PLC task {s.name}: {s.scans} scans every {s.interval_ns / 1e6:g} ms, "
@@ -275,7 +275,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="folder for the PNG plots (out/demo, git-ignored)")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.add_argument("--poll-ms", type=float, default=0.5,
-                   help="sleep between AckSeq polls in ms (0.5; 0 = busy loop)")
+                   help="sleep between answer polls in ms (0.5; 0 = busy loop)")
 
 
 if __name__ == "__main__":
