@@ -323,3 +323,16 @@ def test_bad_calibration_then_an_ordinary_move_cannot_jump(plc: ArmControllerCli
         want = 1500.0 + (angle - zero[ch]) * 1000.0 / 120.0  # MG996R: 1..2 ms = -60..+60 deg
         assert math.isclose(st.pulses_us[ch], want, abs_tol=1e-3)
         assert 500.0 <= st.pulses_us[ch] <= 2500.0
+
+
+@pytest.mark.parametrize("session", [-1, -2**31, 2**31 - 1])
+def test_extreme_sessions_and_sequence_wrap(plc_address: tuple[str, int], session: int) -> None:
+    """Negative and extreme session ids (the check word wraps modulo 2^32 in the PLC as in
+    the client), and Seq 2147483647 followed by 1."""
+    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus, session=session) as c:
+        c._seq = 2**31 - 4  # claim (any Seq may claim) and Hello, then 2^31 - 1, then 1
+        assert c.hello().error_id == ERR_OK
+        assert c.move_joints(2.0, 70.0, 65.0).error_id == ERR_OK
+        assert c.status().ack_seq == 2**31 - 1
+        assert c.move_joints(3.0, 70.0, 65.0).error_id == ERR_OK
+        assert c.status().ack_seq == 1 and c.status().joints_deg == (3.0, 70.0, 65.0)
