@@ -1,0 +1,57 @@
+"""Limits: how deep ST may nest, checked on the syntax tree before any recursive pass runs.
+
+The passes after parsing (lower, resolve, emit_c, ffi) walk nested statements, expressions and
+types recursively. A file nested deeper than NESTING_LIMIT gets one E0108 diagnostic and is not
+lowered, so those walks stay far inside Python's recursion limit. The check itself walks the
+tree with an explicit stack.
+
+Left-associative chains of binary operators (`a + b + c + ...`, thousands of terms) are flat
+code, not nesting: a binary expression that is the left operand of another adds no level, and
+every pass walks such chains in a loop.
+
+The limit is far above what real code needs (the C standard guarantees 63 nested parentheses
+and 127 nested blocks, CPython's own parser stops at 200 nested parentheses) and far below what
+MatIEC's bison parser can hold (its default 10,000-entry stack, which MatIEC does not raise).
+"""
+
+from __future__ import annotations
+
+import tree_sitter as ts
+
+from .diagnostics import Diagnostics
+from .parse import ParsedFile
+
+NESTING_LIMIT = 150  # levels of statements, parentheses, operators, calls, indices, types
+
+# Nodes that always sit between a counted parent and its counted children (an argument list,
+# an ELSIF branch, a CASE clause): they add no level of their own.
+_TRANSPARENT = frozenset({
+    "argument_list", "named_argument", "elsif_clause", "else_clause", "case_clause",
+    "case_value", "subrange", "assignment_statement", "invocation_statement", "structure_field",
+    "variable_declaration", "structure_initializer_field", "comment", "pragma",
+})
+
+
+def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT) -> None:
+    """Report (once per file) the first construct that nests deeper than `limit` levels."""
+    stack: list[tuple[ts.Node, int]] = [(pf.tree.root_node, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > limit:
+            diags.error(pf.pos(node), "E0108", f"nesting deeper than {limit} levels "
+                        "(statements, parentheses, operators, calls, indices): move the "
+                        "inner part into a variable or a FUNCTION")
+            return
+        children = node.named_children
+        for i in range(len(children) - 1, -1, -1):
+            child = children[i]
+            stack.append((child, depth + _levels(node, child)))
+
+
+def _levels(parent: ts.Node, child: ts.Node) -> int:
+    if child.type in _TRANSPARENT:
+        return 0
+    if child.type == "binary_expression" and parent.type == "binary_expression" and \
+            parent.child_by_field_name("left") == child:
+        return 0
+    return 1
