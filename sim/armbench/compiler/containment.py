@@ -22,7 +22,7 @@ from .source import SourcePos
 class Edge:
     target: str  # upper-cased name of the contained type or FB
     via: str  # the member holding it ('' for an alias `TYPE T1 : T2;`)
-    weight: int  # levels of type nesting between the declaration and the reference
+    weight: int  # levels of storage nesting down to the reference (0: `TYPE T1 : T2;` is T2)
 
 
 @dataclass
@@ -40,7 +40,7 @@ def type_holder(td: A.TypeDecl) -> Holder:
     while stack:
         ref, via, depth = stack.pop()
         if isinstance(ref, A.NamedTypeRef):
-            edges.append(Edge(ref.name.upper(), via, max(depth, 1)))
+            edges.append(Edge(ref.name.upper(), via, depth))
         elif isinstance(ref, A.ArrayTypeRef):
             stack.append((ref.element, via, depth + 1))
         elif isinstance(ref, A.StructTypeRef):
@@ -56,7 +56,7 @@ def pou_holder(pou: A.Pou) -> Holder:
         if blk.kind in (A.VAR_IN_OUT, A.VAR_EXTERNAL):
             continue
         for decl in blk.decls:
-            edges.extend(Edge(e.target, decl.name + (f".{e.via}" if e.via else ""), e.weight)
+            edges.extend(Edge(e.target, decl.name + (f".{e.via}" if e.via else ""), e.weight + 1)
                          for e in type_holder(A.TypeDecl(decl.pos, "", decl.type)).edges)
     return Holder(pou.name, pou.kind, pou.pos, edges)
 

@@ -45,6 +45,10 @@ void plc_set_watchdog(int64_t ns);
 """
 
 
+# links of a binary chain per C temporary (see Emitter.binary)
+SPILL_EVERY = 100
+
+
 @dataclass
 class CUnit:
     """The emitted C: `decls` is valid input for cffi's cdef, `code` the whole source."""
@@ -78,6 +82,7 @@ class Emitter:
         self.loc = _Local()
         self.unmapped = 0
         self.ffi_only: list[str] = []
+        self.file_scope = False
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -127,6 +132,11 @@ class Emitter:
         for t in self.p.types.values():
             if isinstance(t, StructType | ArrayType):
                 self.ctype(t)
+        # named structs declared up front: a VAR_IN_OUT may point to its own FB type, or to
+        # one declared later (containment by value is acyclic: resolve reports E0210)
+        for sym in self.p.pous.values():
+            cname = self.pou_cname(sym)
+            self.typedefs.append(f"typedef struct {cname} {cname};\n")
         for sym in self.p.pous.values():
             self.pou_struct(sym)
         self.globals_struct()
@@ -160,7 +170,7 @@ class Emitter:
             lines.append(f"    {self.ctype(sym.return_type)} ret_;\n")
         if not lines:
             lines.append("    uint8_t unused_;\n")
-        self.typedefs.append(f"typedef struct {{\n{''.join(lines)}}} {cname};\n")
+        self.typedefs.append(f"struct {cname} {{\n{''.join(lines)}}};\n")
         self.protos.append(f"void {cname}_init({cname} *self);\n"
                            f"int {cname}_run({cname} *self);\n")
 
@@ -261,7 +271,12 @@ class Emitter:
                 return str(first if t.default is None else t.default)
             return "0"
         assert isinstance(init, A.Expr)
-        return self.expr(init, want=t)
+        # a C initialiser at file scope cannot hold the ({ ... }) of spilled temporaries
+        outer, self.file_scope = self.file_scope, True
+        try:
+            return self.expr(init, want=t)
+        finally:
+            self.file_scope = outer
 
     def const_int(self, e: A.Expr) -> int:
         if isinstance(e, A.Literal):
@@ -358,7 +373,10 @@ class Emitter:
 
     # ================================================================ statements
     def block(self, body: list[A.Stmt], depth: int) -> str:
-        return "".join(self.stmt(s, depth) for s in body)
+        out: list[str] = []
+        for s in body:
+            out.append(self.stmt(s, depth))
+        return "".join(out)
 
     def pos(self, n: A.Node) -> str:
         return '"' + str(n.pos).replace("\\", "/").replace('"', "'") + '"'
@@ -580,14 +598,39 @@ class Emitter:
         return f"((int64_t){n}LL)"
 
     def binary(self, e: A.Binary, t: Type | None) -> str:
-        op = e.op
+        """`a + b + c + ...` in a loop: its left spine is as deep as the chain is long. Inside
+        a function every SPILL_EVERY links go to a temporary, so the C nests no deeper than
+        that whatever the length (gcc's recursive parser crashes near 20,000 levels)."""
+        spine: list[tuple[A.Binary, Type | None, Type | None]] = []
+        node: A.Expr = e
+        while isinstance(node, A.Binary):
+            operand_t = self.operand_type(node, t)
+            spine.append((node, t, operand_t))
+            node = node.left
+            t = self.p.expr_types.get(node)
+            if isinstance(t, LiteralType) and isinstance(operand_t, ElemType):
+                t = operand_t
+        acc = self.expr(node, want=spine[-1][2])
+        spills: list[str] = []
+        for i, (b, bt, operand_t) in enumerate(reversed(spine)):
+            acc = self.binary_node(b, bt, acc, self.expr(b.right, want=operand_t))
+            if (i + 1) % SPILL_EVERY == 0 and b is not e and not self.file_scope and \
+                    isinstance(bt, ElemType):
+                tmp = self.loc.tmp()
+                spills.append(f"{bt.ctype} {tmp} = {acc};")
+                acc = tmp
+        return "({ " + " ".join(spills) + f" {acc}; }})" if spills else acc
+
+    def operand_type(self, e: A.Binary, t: Type | None) -> Type | None:
         lt = self.p.expr_types[e.left]
         rt = self.p.expr_types[e.right]
         operand_t: Type | None = lt if not isinstance(lt, LiteralType) else rt
         if isinstance(operand_t, LiteralType):
-            operand_t = t if op not in ("=", "<>", "<", "<=", ">", ">=") else operand_t
-        a = self.expr(e.left, want=operand_t)
-        b = self.expr(e.right, want=operand_t)
+            operand_t = t if e.op not in ("=", "<>", "<", "<=", ">", ">=") else operand_t
+        return operand_t
+
+    def binary_node(self, e: A.Binary, t: Type | None, a: str, b: str) -> str:
+        op = e.op
         cmp = {"=": "==", "<>": "!=", "<": "<", "<=": "<=", ">": ">", ">=": ">="}
         if op in cmp:
             return f"({a} {cmp[op]} {b})"

@@ -16,12 +16,20 @@ MatIEC's bison parser can hold (its default 10,000-entry stack, which MatIEC doe
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import tree_sitter as ts
 
-from .diagnostics import Diagnostics
-from .parse import ParsedFile
+if TYPE_CHECKING:  # diagnostics.py reads the limit for its table: no import cycle at run time
+    from .diagnostics import Diagnostics
+    from .parse import ParsedFile
 
-NESTING_LIMIT = 150  # levels of statements, parentheses, operators, calls, indices, types
+# Levels of statements, parentheses, operators, calls, indices (E0108) and of types and
+# instances held inside each other (E0211). The deepest pass spends about three Python frames
+# per level (typing a call: expr -> call -> bind -> expr), so 200 levels stay ~600 frames, well
+# inside Python's default limit of 1000 even when the caller is itself deep in a stack
+# (tests/compiler/test_limits.py checks this with 250 frames in use).
+NESTING_LIMIT = 200
 
 # Nodes that always sit between a counted parent and its counted children (an argument list,
 # an ELSIF branch, a CASE clause): they add no level of their own.
@@ -34,7 +42,8 @@ _TRANSPARENT = frozenset({
 
 def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT) -> None:
     """Report (once per file) the first construct that nests deeper than `limit` levels."""
-    stack: list[tuple[ts.Node, int]] = [(pf.tree.root_node, 0)]
+    # the declarations of a file (POUs, TYPE blocks, the CONFIGURATION) are level 0
+    stack: list[tuple[ts.Node, int]] = [(c, 0) for c in reversed(pf.tree.root_node.children)]
     while stack:
         node, depth = stack.pop()
         if depth > limit:
@@ -49,7 +58,7 @@ def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT
 
 
 def _levels(parent: ts.Node, child: ts.Node) -> int:
-    if child.type in _TRANSPARENT:
+    if child.type in _TRANSPARENT or child.named_child_count == 0:  # names, literals
         return 0
     if child.type == "binary_expression" and parent.type == "binary_expression" and \
             parent.child_by_field_name("left") == child:

@@ -308,7 +308,16 @@ class Checker(Declarations):
 
     # ---------------------------------------------------------------- expressions
     def expr(self, e: A.Expr, expected: Type | None) -> Type:
-        t = self._expr(e, expected)
+        # the nesting operators are dispatched here, not in _expr: one Python frame less per
+        # level of nesting (see limits.NESTING_LIMIT)
+        if isinstance(e, A.Call):
+            t = self.call(e, statement=False, expected=expected)
+        elif isinstance(e, A.Binary):
+            t = self.binary(e, expected)
+        elif isinstance(e, A.Unary):
+            t = self.unary(e, expected)
+        else:
+            t = self._expr(e, expected)
         self.expr_types[e] = t
         return t
 
@@ -364,12 +373,6 @@ class Checker(Declarations):
                 if isinstance(c, int) and not lo <= c <= hi:
                     self.d.error(i.pos, "E0308", f"index {c} is outside {lo}..{hi}")
             return ot.element
-        if isinstance(e, A.Unary):
-            return self.unary(e, expected)
-        if isinstance(e, A.Binary):
-            return self.binary(e, expected)
-        if isinstance(e, A.Call):
-            return self.call(e, statement=False, expected=expected)
         return ERROR_T
 
     def literal(self, e: A.Literal) -> Type:

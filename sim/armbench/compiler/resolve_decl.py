@@ -105,7 +105,7 @@ class Declarations:
                 ft = self.type_from_ref(f.type, seen)
                 if isinstance(ft, PouType):
                     self.d.error(f.pos, "E0504", f"field '{f.name}' is an instance of "
-                                 f"{ft.kind.replace('_', ' ')} {ft.name}: MatIEC accepts only "
+                                 f"{ft.kind} {ft.name}: MatIEC accepts only "
                                  "data types in a STRUCT")
                     ft = ERROR_T
                 st.fields[f.name.upper()] = (f.name, ft)
