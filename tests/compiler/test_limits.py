@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from st_deep import CONFIG, program
 
+from armbench.compiler import ast as A
 from armbench.compiler import check_files, compile_files
 from armbench.compiler.driver import analyse
 from armbench.compiler.emit_c import SPILL_EVERY, emit
@@ -268,3 +269,19 @@ def test_in_out_of_own_and_later_fb_type_builds(tmp_path: Path) -> None:
     inst()
     assert (inst.get("b")["n"], inst.get("a")["n"]) == (10, 20)
     assert (inst.get("po")["n"], inst.get("pi")["n"]) == (100, 101)
+
+
+@pytest.mark.parametrize("text", ["1 + 2 * 3 - (4 - 5) * 6", "(1 + 2) * 3 MOD (4 + 5)",
+                                  " + ".join(["1"] * 3000), " - ".join(["7"] * 3000)])
+def test_export_renders_long_and_nested_initial_values(tmp_path: Path, text: str) -> None:
+    """`armbench export` writes initial values back as ST text; a 3,000-term one used to
+    raise RecursionError there."""
+    from armbench.export.sttext import expr_text
+
+    prog, diags = analyse([write(tmp_path, "init", program("const_sum", 1).replace(
+        "k : DINT := 1;", f"k : DINT := {text};"))])
+    assert prog is not None, diags.render()
+    main = next(p for u in prog.units for p in u.pous if p.name == "Main")
+    init = next(d.init for b in main.blocks for d in b.decls if d.name == "k")
+    assert isinstance(init, A.Expr)
+    assert expr_text(init) == text
