@@ -162,6 +162,11 @@ def _init_paren(n: int) -> str:
     return _main("x := x + 1;", decls="  k : DINT := " + _wrap(n, "(", ")", "1") + ";\n")
 
 
+def _dims(n: int) -> str:  # dimensions are a list, not nesting
+    return _main(f"x := m[{', '.join(['x'] * n)}];",
+                 decls=f"  m : ARRAY[{', '.join(['0..0'] * n)}] OF DINT;\n")
+
+
 CONSTRUCTS: dict[str, Callable[[int], str]] = {
     "if": _if, "elsif": _elsif, "case": _case, "case_long": _case_long, "for": _for,
     "while": _while, "repeat": _repeat, "paren": _paren, "paren_sum": _paren_sum, "neg": _neg,
@@ -169,12 +174,12 @@ CONSTRUCTS: dict[str, Callable[[int], str]] = {
     "real_sum": _real_sum, "calls": _calls, "std_calls": _std_calls, "max_calls": _max_calls,
     "conversions": _conversions, "index": _index, "struct_fields": _struct_fields,
     "struct_arrays": _struct_arrays, "fb_chain": _fb_chain, "function_chain": _function_chain,
-    "alias_chain": _alias_chain, "init_paren": _init_paren,
+    "alias_chain": _alias_chain, "init_paren": _init_paren, "dims": _dims,
 }
 
 # Long but flat: every size must be accepted, never rejected as too deep.
 FLAT = {"elsif", "case_long", "sum", "mixed_chain", "const_sum", "real_sum", "function_chain",
-        "alias_chain"}
+        "alias_chain", "dims"}
 # Levels of nesting one step of a construct adds, where it is not one.
 LEVELS_PER_STEP = {"paren_sum": 2, "conversions": 2, "struct_arrays": 2}
 

@@ -285,3 +285,40 @@ def test_export_renders_long_and_nested_initial_values(tmp_path: Path, text: str
     init = next(d.init for b in main.blocks for d in b.decls if d.name == "k")
     assert isinstance(init, A.Expr)
     assert expr_text(init) == text
+
+
+def test_array_with_thousands_of_dimensions(tmp_path: Path) -> None:
+    """Dimensions are a flat list in the source; the C offset, reading and writing through the
+    FFI must not nest per dimension."""
+    n = 3000
+    one = ", ".join(["0"] * n)
+    decls = f"  m : ARRAY[{', '.join(['0..0'] * n)}] OF DINT;\n  k : DINT;\n"
+    body = f"k := m[{', '.join(['x'] * n)}] + 1;\nm[{one}] := k;"
+    path = write(tmp_path, "dims", program("sum", 1).replace("x := x;", body).replace(
+        "END_VAR", decls + "END_VAR", 1))
+    assert codes(path) == []
+    inst = compile_files([path]).new_program("Main")
+    nested: list[object] | int = 41
+    for _ in range(n):
+        nested = [nested]
+    inst.set(m=nested)
+    inst()
+    v = inst.get("m")
+    for _ in range(n):
+        assert isinstance(v, list) and len(v) == 1
+        v = v[0]
+    assert (v, inst.get("k")) == (42, 42)
+
+
+def test_multi_dimensional_offsets_match_numpy(tmp_path: Path) -> None:
+    body = ("FOR i := -1 TO 1 DO FOR j := 2 TO 5 DO FOR k2 := 0 TO 2 DO\n"
+            "  m[i, j, k2] := INT_TO_DINT(i * 100 + j * 10 + k2);\n"
+            "END_FOR; END_FOR; END_FOR;\nx := m[1, 3, 2];")
+    decls = "  m : ARRAY[-1..1, 2..5, 0..2] OF DINT;\n  j : INT;\n  k2 : INT;\n"
+    path = write(tmp_path, "md", program("sum", 1).replace("x := x;", body).replace(
+        "END_VAR", decls + "END_VAR", 1))
+    inst = compile_files([path]).new_program("Main")
+    inst()
+    i, j, k = np.meshgrid(np.arange(-1, 2), np.arange(2, 6), np.arange(0, 3), indexing="ij")
+    assert np.array_equal(np.array(inst.get("m")), i * 100 + j * 10 + k)
+    assert inst.get("x") == 132

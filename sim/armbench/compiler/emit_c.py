@@ -524,17 +524,17 @@ class Emitter:
         if isinstance(e, A.Index):
             at = self.p.expr_types[e.obj]
             assert isinstance(at, ArrayType)
-            flat = ""
-            for i, (ie, (lo, hi)) in enumerate(zip(e.indices, at.dims, strict=True)):
+            # row-major offset as a flat sum of index * stride: no C nesting per dimension
+            terms: list[str] = []
+            stride = at.size
+            for ie, (lo, hi) in zip(e.indices, at.dims, strict=True):
+                stride //= hi - lo + 1
                 if isinstance(ie, A.Literal) and ie.kind == "int":
                     term = str(int(ie.value) - lo)
                 else:
                     term = f"plc__idx({self.expr(ie)}, {lo}, {hi}, {self.pos(ie)})"
-                if i == 0:
-                    flat = term
-                else:
-                    flat = f"({flat}) * {hi - lo + 1} + {term}"
-            return f"{self.lvalue(e.obj)}.v[{flat}]"
+                terms.append(term if stride == 1 else f"{term} * {stride}")
+            return f"{self.lvalue(e.obj)}.v[{' + '.join(terms)}]"
         raise AssertionError(f"not an lvalue: {type(e).__name__}")
 
     def expr(self, e: A.Expr, want: Type | None = None) -> str:
