@@ -254,7 +254,8 @@ def test_types_nested_too_deep(tmp_path: Path) -> None:
 
 def test_in_out_of_own_and_later_fb_type_builds(tmp_path: Path) -> None:
     """A VAR_IN_OUT is a reference, not containment: an FB may take its own type, or a type
-    that takes it back, as in-out (the C declared these before their structs existed)."""
+    that takes it back, as in-out (gcc used to reject the C: the pointer named a struct type
+    not declared yet)."""
     decls = ("FUNCTION_BLOCK Linked\nVAR_IN_OUT\n  peer : Linked;\nEND_VAR\n"
              "VAR_OUTPUT\n  n : DINT;\nEND_VAR\n  n := peer.n + 10;\nEND_FUNCTION_BLOCK\n"
              "FUNCTION_BLOCK Ping\nVAR_IN_OUT\n  other : Pong;\nEND_VAR\n"

@@ -10,8 +10,9 @@ code, not nesting: a binary expression that is the left operand of another adds 
 every pass walks such chains in a loop.
 
 The limit is far above what real code needs (the C standard guarantees 63 nested parentheses
-and 127 nested blocks, CPython's own parser stops at 200 nested parentheses) and far below what
-MatIEC's bison parser can hold (its default 10,000-entry stack, which MatIEC does not raise).
+and 127 nested blocks, CPython's own parser stops at 200 nested parentheses) and below what
+MatIEC's parser holds (bison's default 10,000-entry stack, which MatIEC's sources do not raise):
+MatIEC accepts such files, the bench deliberately does not.
 """
 
 from __future__ import annotations
