@@ -323,3 +323,18 @@ def test_multi_dimensional_offsets_match_numpy(tmp_path: Path) -> None:
     i, j, k = np.meshgrid(np.arange(-1, 2), np.arange(2, 6), np.arange(0, 3), indexing="ij")
     assert np.array_equal(np.array(inst.get("m")), i * 100 + j * 10 + k)
     assert inst.get("x") == 132
+
+
+@pytest.mark.parametrize("n", [3, 20_000])
+def test_long_constant_initial_value_builds(tmp_path: Path, n: int) -> None:
+    """A VAR CONSTANT shares one C constant at file scope, where its initialiser cannot be
+    split into temporaries: a 20,000-term one crashed gcc; it is now set per instance."""
+    src = program("sum", 1).replace("VAR\n", "VAR CONSTANT\n  k : DINT := " +
+                                    " + ".join(["1"] * n) + ";\nEND_VAR\nVAR\n", 1)
+    path = write(tmp_path, "k", src.replace("x := x;", "x := k;"))
+    prog, diags = analyse([path])
+    assert prog is not None, diags.render()
+    assert ("K_PRG_MAIN_K" in emit(prog).code) == (n < SPILL_EVERY)  # still shared when short
+    inst = compile_files([path]).new_program("Main")
+    inst()
+    assert inst.get("x") == n

@@ -82,7 +82,6 @@ class Emitter:
         self.loc = _Local()
         self.unmapped = 0
         self.ffi_only: list[str] = []
-        self.file_scope = False
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -271,12 +270,8 @@ class Emitter:
                 return str(first if t.default is None else t.default)
             return "0"
         assert isinstance(init, A.Expr)
-        # a C initialiser at file scope cannot hold the ({ ... }) of spilled temporaries
-        outer, self.file_scope = self.file_scope, True
-        try:
-            return self.expr(init, want=t)
-        finally:
-            self.file_scope = outer
+        # file scope: fewer than SPILL_EVERY operators here (is_shared_constant), no spill
+        return self.expr(init, want=t)
 
     def const_int(self, e: A.Expr) -> int:
         if isinstance(e, A.Literal):
@@ -614,8 +609,7 @@ class Emitter:
         spills: list[str] = []
         for i, (b, bt, operand_t) in enumerate(reversed(spine)):
             acc = self.binary_node(b, bt, acc, self.expr(b.right, want=operand_t))
-            if (i + 1) % SPILL_EVERY == 0 and b is not e and not self.file_scope and \
-                    isinstance(bt, ElemType):
+            if (i + 1) % SPILL_EVERY == 0 and b is not e and isinstance(bt, ElemType):
                 tmp = self.loc.tmp()
                 spills.append(f"{bt.ctype} {tmp} = {acc};")
                 acc = tmp
@@ -797,9 +791,28 @@ def field_inits(t: StructType, init: A.Init | None) -> list[tuple[str, Type, A.I
 
 def is_shared_constant(v: VarSym) -> bool:
     """A VAR CONSTANT is never written (the checker refuses it), so all instances and calls
-    can share one read-only copy."""
+    can share one read-only copy. Not when its initial value is a long operator chain: the
+    shared copy's initialiser is at file scope, where C allows no temporaries to split it (see
+    Emitter.binary), so such a constant is initialised per instance like a variable."""
     return v.constant and v.kind == A.VAR and not v.address and \
-        not isinstance(v.type, PouType)
+        not isinstance(v.type, PouType) and _operators_in(v.init) < SPILL_EVERY
+
+
+def _operators_in(init: A.Init | None) -> int:
+    count = 0
+    stack: list[A.Init] = [init] if init is not None else []
+    while stack:
+        x = stack.pop()
+        if isinstance(x, A.ArrayInit):
+            stack.extend(v for _, v in x.items)
+        elif isinstance(x, A.StructInit):
+            stack.extend(v for _, v in x.fields)
+        elif isinstance(x, A.Binary):
+            count += 1
+            stack += (x.left, x.right)
+        elif isinstance(x, A.Unary):
+            stack.append(x.operand)
+    return count
 
 
 def const_name(pou_cname: str, v: VarSym) -> str:
