@@ -18,25 +18,38 @@ Without either, the cross-check is skipped.
 test_fuzz_* feed ~200 mangled variants of the corpus files (truncated, random bytes inserted,
 lines deleted; fixed seed) to check_files: no exception may escape and every diagnostic must
 render as one `file:line:col: error[CODE]: message` line with a code from CODES.
+test_fuzz_depth_and_size feeds each construct of st_deep.py (IF, CASE, loops, parentheses,
+unary chains, binary chains, call chains, indices, STRUCT field and FB instance chains, long
+ELSIF/CASE lists, call graphs) nested or repeated up to 5,000 times, and random mixtures of
+them: the valid ones pass check and C emission, the too-deep ones get E0108/E0211, nothing raises.
 """
 
 from __future__ import annotations
 
 import random
 import re
+import time
 from pathlib import Path
 
 import pytest
 from st_corpus import DIAGNOSTICS, SEMANTICS
+from st_deep import CONSTRUCTS, FLAT, LEVELS_PER_STEP, mixed, program
 
 from armbench.compiler import check_files
-from armbench.compiler.diagnostics import CODES
+from armbench.compiler.diagnostics import CODES, Diagnostic
+from armbench.compiler.driver import analyse
+from armbench.compiler.emit_c import emit
+from armbench.compiler.limits import NESTING_LIMIT
 
 FILES = sorted(DIAGNOSTICS.glob("*.st"))
 
 # name -> reason: the checker's output differs from the expected .txt (reported to the lead)
 # Rules where the bench is stricter than MatIEC on purpose: MatIEC accepts these files.
 BENCH_STRICTER: dict[str, str] = {
+    "E0108_nesting_too_deep": "the bench's own nesting limit (200); MatIEC's bison parser "
+                              "holds far deeper nesting",
+    "E0108_nested_if": "the bench's own nesting limit (200)",
+    "E0211_types_nested_too_deep": "the bench's own limit on nested types (200)",
     "E0409_in_out_not_passed": "MatIEC accepts a FUNCTION call that leaves a VAR_IN_OUT "
                                "unbound (it would dereference NULL at run time)",
 }
@@ -156,3 +169,61 @@ def test_fuzz_no_crash(chunk: int, tmp_path: Path, monkeypatch: pytest.MonkeyPat
             assert m, f"{name}: not one well-formed line: {r!r}"
             assert m["file"] == f.name and m["code"] in CODES, r
             assert int(m["line"]) >= 1 and int(m["col"]) >= 1, r
+
+
+# ------------------------------------------------------------------ depth and size fuzz
+DEEP_SIZES = (1, 30, NESTING_LIMIT // 2, NESTING_LIMIT + 1, 1000, 5000)
+FLAT_SIZES = (1, 30, 1000, 2000)
+# A hang guard, not a speed target (those live in bench/): the slowest input takes well
+# under a second.
+TIME_BOUND_S = 30.0
+
+
+def _check_generated(tmp_path: Path, name: str, text: str) -> list[Diagnostic]:
+    """check + C emission of one generated file; fails the test on any exception."""
+    f = tmp_path / f"{name}.st"
+    f.write_text(text, encoding="utf-8")
+    t0 = time.perf_counter()
+    try:
+        prog, diags = analyse([f.name])
+        if prog is not None:
+            emit(prog)
+    except Exception as exc:  # noqa: BLE001 - the point of the test
+        pytest.fail(f"{name}: {type(exc).__name__}: {exc}")
+    elapsed = time.perf_counter() - t0
+    assert elapsed < TIME_BOUND_S, f"{name} took {elapsed:.1f} s"
+    ds = diags.sorted()
+    for d in ds:
+        m = LINE_RE.match(d.render())
+        assert m and m["file"] == f.name and m["code"] in CODES, d.render()
+    return ds
+
+
+@pytest.mark.parametrize("construct", sorted(CONSTRUCTS))
+def test_fuzz_depth_and_size(construct: str, tmp_path: Path,
+                             monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    flat = construct in FLAT
+    sizes = FLAT_SIZES + ((5000,) if construct == "sum" else ()) if flat else DEEP_SIZES
+    for n in sizes:
+        ds = _check_generated(tmp_path, f"{construct}-{n}", program(construct, n))
+        codes = [d.code for d in ds]
+        if flat or n * LEVELS_PER_STEP.get(construct, 1) < NESTING_LIMIT:
+            assert not ds, f"{construct} x{n} is valid ST:\n" + "\n".join(map(str, codes))
+        elif n > NESTING_LIMIT:
+            assert codes and set(codes) <= {"E0108", "E0211"}, (construct, n, codes)
+            assert codes.count("E0108") <= 1, (construct, n, codes)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fuzz_mixed_nesting(seed: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    rng = random.Random(8000 + seed)
+    for k in range(6):
+        stmt_depth, expr_depth = rng.randrange(0, 120), rng.choice((0, 20, 90, 400, 3000))
+        ds = _check_generated(tmp_path, f"mixed-{seed}-{k}", mixed(rng, stmt_depth, expr_depth))
+        # statements add one level each, expressions one or two (a conversion pair is two)
+        if stmt_depth + 2 * expr_depth + 2 <= NESTING_LIMIT:
+            assert not ds, [d.render() for d in ds]
+        elif stmt_depth + expr_depth > NESTING_LIMIT:
+            assert [d.code for d in ds] == ["E0108"], [d.render() for d in ds]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .limits import NESTING_LIMIT
 from .source import SourcePos
 
 # One table: code -> (title, what to write instead). docs/diagnostics.md is generated from it.
@@ -18,6 +19,9 @@ CODES: dict[str, tuple[str, str]] = {
     "E0105": ("unsupported construct", "rewrite with the IEC 61131-3 subset MatIEC accepts"),
     "E0106": ("'**' power operator", "use EXPT(x, 2.0) or x * x: OpenPLC lacks __expt"),
     "E0107": ("missing ';' after END_STRUCT", "write END_STRUCT; inside TYPE ... END_TYPE"),
+    "E0108": ("nesting too deep", f"nest statements and expressions at most {NESTING_LIMIT} "
+              "levels: move inner parts into variables or FUNCTIONs (long flat chains like "
+              "a + b + c are fine)"),
     "E0200": ("undeclared name", "declare the variable, type or POU"),
     "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
     "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
@@ -33,6 +37,11 @@ CODES: dict[str, tuple[str, str]] = {
     "E0207": ("VAR_EXTERNAL in a FUNCTION", "pass the value as a VAR_INPUT"),
     "E0208": ("FB instance inside a FUNCTION", "make the caller a FUNCTION_BLOCK"),
     "E0209": ("recursion", "IEC 61131-3 forbids recursive calls: use a loop"),
+    "E0210": ("type or FUNCTION_BLOCK contains itself", "a STRUCT, ARRAY type or FB instance "
+              "cannot hold itself, directly or through others: keep the repeated part in an "
+              "array and refer to it by index, or pass it as VAR_IN_OUT"),
+    "E0211": ("types nested too deep", f"nest STRUCTs, ARRAY types and FB instances at most "
+              f"{NESTING_LIMIT} levels deep"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "
@@ -60,6 +69,8 @@ CODES: dict[str, tuple[str, str]] = {
     "E0501": ("ARRAY OF ARRAY", "use a multi-dimensional array ARRAY[a..b, c..d]"),
     "E0502": ("ARRAY of FB instances", "declare the instances one by one"),
     "E0503": ("too many initial values", "give at most as many values as the array holds"),
+    "E0504": ("FB instance in a STRUCT", "declare the instance in the FUNCTION_BLOCK or "
+              "PROGRAM that uses it: MatIEC accepts only data types as STRUCT fields"),
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),

@@ -10,6 +10,7 @@ from . import ast as A
 from .build import build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .emit_c import CUnit, emit
+from .limits import check_nesting
 from .lower import lower
 from .parse import parse_text
 from .resolve import check
@@ -45,6 +46,7 @@ def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnos
         pf = parse_text(str(path), text, diags)
         parsed.append(pf)
         check_rules(pf, diags)
+        check_nesting(pf, diags)
     _drop_syntax_cascades(diags)
     if diags.has_errors:
         return None, diags  # no semantic checks after a syntax error: no cascades

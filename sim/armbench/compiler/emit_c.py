@@ -45,6 +45,10 @@ void plc_set_watchdog(int64_t ns);
 """
 
 
+# links of a binary chain per C temporary (see Emitter.binary)
+SPILL_EVERY = 100
+
+
 @dataclass
 class CUnit:
     """The emitted C: `decls` is valid input for cffi's cdef, `code` the whole source."""
@@ -127,6 +131,11 @@ class Emitter:
         for t in self.p.types.values():
             if isinstance(t, StructType | ArrayType):
                 self.ctype(t)
+        # named structs declared up front: a VAR_IN_OUT may point to its own FB type, or to
+        # one declared later (containment by value is acyclic: resolve reports E0210)
+        for sym in self.p.pous.values():
+            cname = self.pou_cname(sym)
+            self.typedefs.append(f"typedef struct {cname} {cname};\n")
         for sym in self.p.pous.values():
             self.pou_struct(sym)
         self.globals_struct()
@@ -160,7 +169,7 @@ class Emitter:
             lines.append(f"    {self.ctype(sym.return_type)} ret_;\n")
         if not lines:
             lines.append("    uint8_t unused_;\n")
-        self.typedefs.append(f"typedef struct {{\n{''.join(lines)}}} {cname};\n")
+        self.typedefs.append(f"struct {cname} {{\n{''.join(lines)}}};\n")
         self.protos.append(f"void {cname}_init({cname} *self);\n"
                            f"int {cname}_run({cname} *self);\n")
 
@@ -261,6 +270,7 @@ class Emitter:
                 return str(first if t.default is None else t.default)
             return "0"
         assert isinstance(init, A.Expr)
+        # file scope: fewer than SPILL_EVERY operators here (is_shared_constant), no spill
         return self.expr(init, want=t)
 
     def const_int(self, e: A.Expr) -> int:
@@ -358,7 +368,10 @@ class Emitter:
 
     # ================================================================ statements
     def block(self, body: list[A.Stmt], depth: int) -> str:
-        return "".join(self.stmt(s, depth) for s in body)
+        out: list[str] = []
+        for s in body:
+            out.append(self.stmt(s, depth))
+        return "".join(out)
 
     def pos(self, n: A.Node) -> str:
         return '"' + str(n.pos).replace("\\", "/").replace('"', "'") + '"'
@@ -506,17 +519,17 @@ class Emitter:
         if isinstance(e, A.Index):
             at = self.p.expr_types[e.obj]
             assert isinstance(at, ArrayType)
-            flat = ""
-            for i, (ie, (lo, hi)) in enumerate(zip(e.indices, at.dims, strict=True)):
+            # row-major offset as a flat sum of index * stride: no C nesting per dimension
+            terms: list[str] = []
+            stride = at.size
+            for ie, (lo, hi) in zip(e.indices, at.dims, strict=True):
+                stride //= hi - lo + 1
                 if isinstance(ie, A.Literal) and ie.kind == "int":
                     term = str(int(ie.value) - lo)
                 else:
                     term = f"plc__idx({self.expr(ie)}, {lo}, {hi}, {self.pos(ie)})"
-                if i == 0:
-                    flat = term
-                else:
-                    flat = f"({flat}) * {hi - lo + 1} + {term}"
-            return f"{self.lvalue(e.obj)}.v[{flat}]"
+                terms.append(term if stride == 1 else f"{term} * {stride}")
+            return f"{self.lvalue(e.obj)}.v[{' + '.join(terms)}]"
         raise AssertionError(f"not an lvalue: {type(e).__name__}")
 
     def expr(self, e: A.Expr, want: Type | None = None) -> str:
@@ -580,14 +593,38 @@ class Emitter:
         return f"((int64_t){n}LL)"
 
     def binary(self, e: A.Binary, t: Type | None) -> str:
-        op = e.op
+        """`a + b + c + ...` in a loop: its left spine is as deep as the chain is long. Inside
+        a function every SPILL_EVERY links go to a temporary, so the C nests no deeper than
+        that whatever the length (gcc's recursive parser crashes near 20,000 levels)."""
+        spine: list[tuple[A.Binary, Type | None, Type | None]] = []
+        node: A.Expr = e
+        while isinstance(node, A.Binary):
+            operand_t = self.operand_type(node, t)
+            spine.append((node, t, operand_t))
+            node = node.left
+            t = self.p.expr_types.get(node)
+            if isinstance(t, LiteralType) and isinstance(operand_t, ElemType):
+                t = operand_t
+        acc = self.expr(node, want=spine[-1][2])
+        spills: list[str] = []
+        for i, (b, bt, operand_t) in enumerate(reversed(spine)):
+            acc = self.binary_node(b, bt, acc, self.expr(b.right, want=operand_t))
+            if (i + 1) % SPILL_EVERY == 0 and b is not e and isinstance(bt, ElemType):
+                tmp = self.loc.tmp()
+                spills.append(f"{bt.ctype} {tmp} = {acc};")
+                acc = tmp
+        return "({ " + " ".join(spills) + f" {acc}; }})" if spills else acc
+
+    def operand_type(self, e: A.Binary, t: Type | None) -> Type | None:
         lt = self.p.expr_types[e.left]
         rt = self.p.expr_types[e.right]
         operand_t: Type | None = lt if not isinstance(lt, LiteralType) else rt
         if isinstance(operand_t, LiteralType):
-            operand_t = t if op not in ("=", "<>", "<", "<=", ">", ">=") else operand_t
-        a = self.expr(e.left, want=operand_t)
-        b = self.expr(e.right, want=operand_t)
+            operand_t = t if e.op not in ("=", "<>", "<", "<=", ">", ">=") else operand_t
+        return operand_t
+
+    def binary_node(self, e: A.Binary, t: Type | None, a: str, b: str) -> str:
+        op = e.op
         cmp = {"=": "==", "<>": "!=", "<": "<", "<=": "<=", ">": ">", ">=": ">="}
         if op in cmp:
             return f"({a} {cmp[op]} {b})"
@@ -754,9 +791,28 @@ def field_inits(t: StructType, init: A.Init | None) -> list[tuple[str, Type, A.I
 
 def is_shared_constant(v: VarSym) -> bool:
     """A VAR CONSTANT is never written (the checker refuses it), so all instances and calls
-    can share one read-only copy."""
+    can share one read-only copy. Not when its initial value is a long operator chain: the
+    shared copy's initialiser is at file scope, where C allows no temporaries to split it (see
+    Emitter.binary), so such a constant is initialised per instance like a variable."""
     return v.constant and v.kind == A.VAR and not v.address and \
-        not isinstance(v.type, PouType)
+        not isinstance(v.type, PouType) and _operators_in(v.init) < SPILL_EVERY
+
+
+def _operators_in(init: A.Init | None) -> int:
+    count = 0
+    stack: list[A.Init] = [init] if init is not None else []
+    while stack:
+        x = stack.pop()
+        if isinstance(x, A.ArrayInit):
+            stack.extend(v for _, v in x.items)
+        elif isinstance(x, A.StructInit):
+            stack.extend(v for _, v in x.fields)
+        elif isinstance(x, A.Binary):
+            count += 1
+            stack += (x.left, x.right)
+        elif isinstance(x, A.Unary):
+            stack.append(x.operand)
+    return count
 
 
 def const_name(pou_cname: str, v: VarSym) -> str:

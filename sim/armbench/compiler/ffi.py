@@ -60,10 +60,11 @@ class Values:
         raise TypeError(f"cannot convert {t}")
 
     def _reshape(self, flat: list[Any], shape: list[int]) -> list[Any]:
-        if len(shape) == 1:
-            return flat
-        step = len(flat) // shape[0]
-        return [self._reshape(flat[i * step:(i + 1) * step], shape[1:]) for i in range(shape[0])]
+        # innermost dimension first, in a loop: an array may have thousands of dimensions
+        out = flat
+        for size in reversed(shape[1:]):
+            out = [out[i:i + size] for i in range(0, len(out), size)]
+        return out
 
     def assign(self, owner: Any, key: str, t: Type, value: Any, what: str) -> None:
         """owner.key = value, converting and checking."""
@@ -116,8 +117,16 @@ class Values:
     def _flatten(self, value: Any) -> list[Any]:
         if isinstance(value, list | tuple):
             out: list[Any] = []
-            for v in value:
-                out.extend(self._flatten(v) if isinstance(v, list | tuple) else [v])
+            end = object()
+            pending = [iter(value)]  # a stack, not recursion: nesting depth is the caller's
+            while pending:
+                v = next(pending[-1], end)
+                if v is end:
+                    pending.pop()
+                elif isinstance(v, list | tuple):
+                    pending.append(iter(v))
+                else:
+                    out.append(v)
             return out
         if isinstance(value, np.ndarray):
             return [x.item() for x in value.ravel()]

@@ -413,11 +413,7 @@ class Lowerer:
         if t == "parenthesized_expression":
             return self.expr(self.named(n)[0])
         if t == "binary_expression":
-            op = self.op_token(n)
-            if op == "&":
-                op = "AND"
-            return A.Binary(p, op, self.expr(self.field(n, "left")),
-                            self.expr(self.field(n, "right")))
+            return self.binary_chain(n)
         if t == "unary_expression":
             return A.Unary(p, self.op_token(n), self.expr(self.field(n, "operand")))
         if t == "member_access_expression":
@@ -444,6 +440,21 @@ class Lowerer:
             prefix = self.text(self.field(n, "type")).upper()
             return self.literal(self.field(n, "value"), prefix, n)
         raise _Unsupported(n, t.replace("_", " "))
+
+    def binary_chain(self, n: ts.Node) -> A.Binary:
+        """`a + b + c + ...` nests to the left as deep as it is long: walk it in a loop."""
+        spine = [n]
+        left = self.field(n, "left")
+        while left.type == "binary_expression":
+            spine.append(left)
+            left = self.field(left, "left")
+        acc = self.expr(left)
+        for b in reversed(spine):
+            op = self.op_token(b)
+            acc = A.Binary(self.pos(b), "AND" if op == "&" else op, acc,
+                           self.expr(self.field(b, "right")))
+        assert isinstance(acc, A.Binary)
+        return acc
 
     def literal(self, n: ts.Node, prefix: str | None, whole: ts.Node | None = None) -> A.Literal:
         text = self.text(whole if whole is not None else n)

@@ -9,7 +9,7 @@ turns identifiers spanning such an offset back into enum literals.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import tree_sitter as ts
 import tree_sitter_iec61131_3_st as st_grammar
@@ -34,6 +34,7 @@ class ParsedFile:
     tree: ts.Tree
     enum_hash_offsets: frozenset[int]
     line_starts: list[int]
+    ascii_lines: dict[int, bool] = field(default_factory=dict)  # row -> all bytes ASCII
 
     def pos(self, node: ts.Node) -> SourcePos:
         return SourcePos(self.path, node.start_point.row + 1, self._col(node.start_point))
@@ -51,7 +52,16 @@ class ParsedFile:
         return SourcePos(self.path, line + 1, col)
 
     def _col(self, point: ts.Point) -> int:
-        start = self.line_starts[point.row] if point.row < len(self.line_starts) else 0
+        row = point.row
+        if row >= len(self.line_starts):
+            return point.column + 1
+        ascii_ = self.ascii_lines.get(row)
+        if ascii_ is None:  # a 100,000-term line is decoded once, not once per position
+            end = self.line_starts[row + 1] if row + 1 < len(self.line_starts) else None
+            ascii_ = self.ascii_lines[row] = self.data[self.line_starts[row]:end].isascii()
+        if ascii_:
+            return point.column + 1
+        start = self.line_starts[row]
         return len(self.data[start:start + point.column].decode("utf-8", "replace")) + 1
 
     def text_of(self, node: ts.Node) -> str:

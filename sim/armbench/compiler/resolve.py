@@ -8,10 +8,11 @@ Declarations live in resolve_decl.py, standard-function typing in resolve_std.py
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from . import ast as A
+from .containment import check_containment, pou_holder, type_holder
 from .diagnostics import Diagnostics
 from .resolve_decl import Declarations
 from .resolve_std import StdCallTyper
@@ -91,9 +92,18 @@ class Checker(Declarations):
                         if blk.constant and isinstance(decl.init, A.Literal) and \
                                 decl.init.kind == "int":
                             self.global_consts[decl.name.upper()] = int(decl.init.value)
-        for key, td in self.type_decls.items():
-            if key not in self.types:
-                self.types[key] = self.named_type(td, set())
+        holders = {key: type_holder(td) for key, td in self.type_decls.items()}
+        for sym in self.user_pous():
+            if sym.node is not None and sym.kind != "FUNCTION":
+                holders.setdefault(sym.key, pou_holder(sym.node))
+        bad, order = check_containment(holders, self.d)
+        for key in bad:
+            if key in self.type_decls:
+                self.types[key] = ERROR_T
+        # what a type contains is built before it, so building never recurses through names
+        for key in order + list(self.type_decls):
+            if key in self.type_decls and key not in self.types:
+                self.types[key] = self.named_type(self.type_decls[key], set())
         for sym in self.user_pous():
             self.declare_pou_vars(sym)
         config = None
@@ -194,16 +204,22 @@ class Checker(Declarations):
             self.d.error(init.pos, "E0300", "an initial value must be a constant")
 
     def is_constant(self, e: A.Expr) -> bool:
-        if isinstance(e, A.Literal):
-            return True
-        if isinstance(e, A.Name):
-            ref = self.names.get(e)
-            return ref is not None and ref.kind == "enum"
-        if isinstance(e, A.Unary):
-            return self.is_constant(e.operand)
-        if isinstance(e, A.Binary):
-            return self.is_constant(e.left) and self.is_constant(e.right)
-        return False
+        stack = [e]
+        while stack:
+            x = stack.pop()
+            if isinstance(x, A.Literal):
+                continue
+            if isinstance(x, A.Name):
+                ref = self.names.get(x)
+                if ref is None or ref.kind != "enum":
+                    return False
+            elif isinstance(x, A.Unary):
+                stack.append(x.operand)
+            elif isinstance(x, A.Binary):
+                stack += (x.right, x.left)
+            else:
+                return False
+        return True
 
     def stmts(self, body: list[A.Stmt]) -> None:
         for s in body:
@@ -292,7 +308,16 @@ class Checker(Declarations):
 
     # ---------------------------------------------------------------- expressions
     def expr(self, e: A.Expr, expected: Type | None) -> Type:
-        t = self._expr(e, expected)
+        # the nesting operators are dispatched here, not in _expr: one Python frame less per
+        # level of nesting (see limits.NESTING_LIMIT)
+        if isinstance(e, A.Call):
+            t = self.call(e, statement=False, expected=expected)
+        elif isinstance(e, A.Binary):
+            t = self.binary(e, expected)
+        elif isinstance(e, A.Unary):
+            t = self.unary(e, expected)
+        else:
+            t = self._expr(e, expected)
         self.expr_types[e] = t
         return t
 
@@ -348,12 +373,6 @@ class Checker(Declarations):
                 if isinstance(c, int) and not lo <= c <= hi:
                     self.d.error(i.pos, "E0308", f"index {c} is outside {lo}..{hi}")
             return ot.element
-        if isinstance(e, A.Unary):
-            return self.unary(e, expected)
-        if isinstance(e, A.Binary):
-            return self.binary(e, expected)
-        if isinstance(e, A.Call):
-            return self.call(e, statement=False, expected=expected)
         return ERROR_T
 
     def literal(self, e: A.Literal) -> Type:
@@ -474,10 +493,24 @@ class Checker(Declarations):
     _LOGIC = {"AND", "OR", "XOR"}
 
     def binary(self, e: A.Binary, expected: Type | None) -> Type:
+        """Types `a + b + c + ...` in a loop: its left spine is as deep as the chain is long."""
+        spine: list[tuple[A.Binary, Type | None]] = []
+        node: A.Expr = e
+        while isinstance(node, A.Binary):
+            sub_expected = expected if node.op in self._ARITH or node.op in self._LOGIC \
+                else None
+            spine.append((node, sub_expected))
+            node, expected = node.left, sub_expected
+        lt = self.expr(node, expected)
+        for b, sub_expected in reversed(spine):
+            rt = self.expr(b.right, sub_expected)
+            lt = self.binary_node(b, lt, rt)
+            if b is not e:
+                self.expr_types[b] = lt
+        return lt
+
+    def binary_node(self, e: A.Binary, lt: Type, rt: Type) -> Type:
         op = e.op
-        sub_expected = expected if op in self._ARITH or op in self._LOGIC else None
-        lt = self.expr(e.left, sub_expected)
-        rt = self.expr(e.right, sub_expected)
         if lt is ERROR_T or rt is ERROR_T:
             return ERROR_T
         if op == "**":
@@ -575,16 +608,16 @@ class Checker(Declarations):
 
     def settle(self, e: A.Expr, target: ElemType) -> None:
         """Give untyped literal sub-expressions their context type (for C emission)."""
-        t = self.expr_types.get(e)
-        if not isinstance(t, LiteralType):
-            return
-        self.expr_types[e] = target
-        if isinstance(e, A.Unary):
-            self.settle(e.operand, target)
-        elif isinstance(e, A.Binary):
-            if e.op not in self._CMP:
-                self.settle(e.left, target)
-                self.settle(e.right, target)
+        stack = [e]
+        while stack:
+            x = stack.pop()
+            if not isinstance(self.expr_types.get(x), LiteralType):
+                continue
+            self.expr_types[x] = target
+            if isinstance(x, A.Unary):
+                stack.append(x.operand)
+            elif isinstance(x, A.Binary) and x.op not in self._CMP:
+                stack += (x.right, x.left)
 
     # ---------------------------------------------------------------- calls
     def call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
@@ -713,50 +746,66 @@ class Checker(Declarations):
 
     # ---------------------------------------------------------------- whole program
     def check_recursion(self) -> None:
-        state: dict[str, int] = {}
-
-        def visit(k: str, path: list[str]) -> None:
-            state[k] = 1
-            for callee in sorted(self.call_graph.get(k, ())):
-                if state.get(callee) == 1:
+        """Report each call cycle once, at the call that closes it (depth first, no recursion:
+        a chain of thousands of FUNCTIONs each calling the next is legal)."""
+        state: dict[str, int] = {}  # 1 = on the current path, 2 = done
+        for root in self.call_graph:
+            if root in state:
+                continue
+            state[root] = 1
+            path = [root]
+            pending = [iter(sorted(self.call_graph.get(root, ())))]
+            while path:
+                k = path[-1]
+                callee = next(pending[-1], None)
+                if callee is None:
+                    state[k] = 2
+                    path.pop()
+                    pending.pop()
+                elif state.get(callee) == 1:
                     cycle = path[path.index(callee):] + [callee]
                     names = " -> ".join(self.pous[n].name for n in cycle)
                     self.d.error(self.call_sites[(k, callee)], "E0209",
                                  f"recursive call cycle {names}: IEC 61131-3 and MatIEC "
                                  "forbid recursion")
                 elif state.get(callee) is None:
-                    visit(callee, path + [callee])
-            state[k] = 2
-
-        for k in self.call_graph:
-            if k not in state:
-                visit(k, [k])
+                    state[callee] = 1
+                    path.append(callee)
+                    pending.append(iter(sorted(self.call_graph.get(callee, ()))))
 
     def ordered_pous(self) -> Iterable[tuple[str, PouSym]]:
         """Callees and instance types before their users, so C declarations come first."""
         done: set[str] = set()
         out: list[tuple[str, PouSym]] = []
 
-        def deps(p: PouSym) -> set[str]:
+        def deps(p: PouSym) -> Iterator[PouSym]:
             d = set(self.call_graph.get(p.key, ()))
             for v in p.vars.values():
                 if isinstance(v.type, PouType) and not v.type.symbol.builtin:  # type: ignore
                     d.add(v.type.name.upper())
-            return d
-
-        def visit(p: PouSym, stack: set[str]) -> None:
-            if p.key in done or p.key in stack:
-                return
-            stack.add(p.key)
-            for dk in sorted(deps(p)):
-                dp = self.pous.get(dk)
+            for k in sorted(d):
+                dp = self.pous.get(k)
                 if dp is not None and not dp.builtin:
-                    visit(dp, stack)
-            done.add(p.key)
-            out.append((p.key, p))
+                    yield dp
 
-        for p in self.user_pous():
-            visit(p, set())
+        for root in self.user_pous():
+            if root.key in done:
+                continue
+            on_path = {root.key}
+            path = [root]
+            pending = [deps(root)]
+            while path:
+                dp = next(pending[-1], None)
+                if dp is None:
+                    p = path.pop()
+                    pending.pop()
+                    if p.key not in done:
+                        done.add(p.key)
+                        out.append((p.key, p))
+                elif dp.key not in done and dp.key not in on_path:
+                    on_path.add(dp.key)
+                    path.append(dp)
+                    pending.append(deps(dp))
         return out
 
 

@@ -103,6 +103,11 @@ class Declarations:
                     self.d.error(f.pos, "E0201", f"duplicate field '{f.name}'")
                     continue
                 ft = self.type_from_ref(f.type, seen)
+                if isinstance(ft, PouType):
+                    self.d.error(f.pos, "E0504", f"field '{f.name}' is an instance of "
+                                 f"{ft.kind} {ft.name}: MatIEC accepts only "
+                                 "data types in a STRUCT")
+                    ft = ERROR_T
                 st.fields[f.name.upper()] = (f.name, ft)
                 if f.init is not None:
                     st.inits[f.name.upper()] = f.init

@@ -31,7 +31,9 @@ class StdCallTyper:
         args = self.order_args(c, f)
         if args is None:
             return ERROR_T
-        types = [self.k.expr(a, None) for a in args]
+        types: list[Type] = []
+        for a in args:  # a loop, not a comprehension: one frame less per nested call
+            types.append(self.k.expr(a, None))
         if any(t is ERROR_T for t in types):
             return ERROR_T
         k = f.kind

@@ -135,9 +135,18 @@ def expr_text(e: A.Expr, parent_prec: int = 0) -> str:
         inner = f"{e.op}{sep}{expr_text(e.operand, 9)}"
         return f"({inner})" if parent_prec > 9 else inner
     if isinstance(e, A.Binary):
-        p = _PREC.get(e.op.upper(), 0)
-        inner = f"{expr_text(e.left, p)} {e.op} {expr_text(e.right, p + 1)}"
-        return f"({inner})" if p < parent_prec else inner
+        # `a + b + c + ...` nests to the left as deep as it is long: walk it in a loop
+        spine: list[tuple[A.Binary, int, int]] = []
+        node: A.Expr = e
+        while isinstance(node, A.Binary):
+            p = _PREC.get(node.op.upper(), 0)
+            spine.append((node, p, parent_prec))
+            node, parent_prec = node.left, p
+        text = expr_text(node, parent_prec)
+        for b, p, outer in reversed(spine):
+            inner = f"{text} {b.op} {expr_text(b.right, p + 1)}"
+            text = f"({inner})" if p < outer else inner
+        return text
     if isinstance(e, A.Call):
         args = ", ".join(
             (f"{a.name} {'=>' if a.is_output else ':='} " if a.name else "") + expr_text(a.value)
