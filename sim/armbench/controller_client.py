@@ -383,6 +383,16 @@ class ArmControllerClient:
         reg = controller_map()["SCANCOUNT"]
         return mm.words_to_udint(self.plc.read_holding_registers(reg.address, 2))
 
+    def wait_scans(self, scans: int, timeout_s: float = 5.0) -> None:
+        """Return after the PLC has run ``scans`` more scans (raises HandshakeTimeout when it
+        stops scanning): the way to wait for "nothing happened" in a test."""
+        start = self.scan_count()
+        deadline = time.monotonic() + timeout_s
+        while (self.scan_count() - start) & 0xFFFFFFFF < scans:
+            if time.monotonic() > deadline:
+                raise HandshakeTimeout(f"the PLC ran fewer than {scans} scans in {timeout_s:g} s")
+            time.sleep(0.002)
+
     def channel_words(self) -> list[int]:
         """The 16 LEDn_OFF words (one request: they are contiguous)."""
         first = self._channel_regs[0].address

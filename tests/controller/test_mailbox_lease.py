@@ -53,23 +53,15 @@ def fast_plc() -> Iterator[tuple[str, int]]:
         server.stop()
 
 
-def _wait_scans(ctl: ArmControllerClient, scans: int) -> None:
-    start = ctl.scan_count()
-    deadline = time.monotonic() + 20.0
-    while ctl.scan_count() - start < scans:
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
-
-
 def test_silent_owner_loses_mailbox_and_batch_buffer(fast_plc: tuple[str, int]) -> None:
     with PlcClient(*fast_plc) as modbus:
         a = ArmControllerClient(modbus)
         assert a.command(CMD_RESERVE_BATCH).error_id == ERR_OK
         k = a.mailbox
         assert k is not None and a.status().batch_owner == k
-        _wait_scans(a, LEASE_SCANS // 2)
+        a.wait_scans(LEASE_SCANS // 2, timeout_s=20.0)
         assert a.answer(k).owner == a.session  # half a lease: still held
-        _wait_scans(a, LEASE_SCANS // 2 + 10)
+        a.wait_scans(LEASE_SCANS // 2 + 10, timeout_s=20.0)
         assert a.answer(k).owner == 0
         assert a.status().batch_owner == 0
         # a client that comes back after its lease simply claims a mailbox again
@@ -81,7 +73,7 @@ def test_renewed_lease_is_kept(fast_plc: tuple[str, int]) -> None:
         a.hello()
         k = a.mailbox
         for _ in range(3):
-            _wait_scans(a, LEASE_SCANS * 2 // 3)
+            a.wait_scans(LEASE_SCANS * 2 // 3, timeout_s=20.0)
             assert a.hello().error_id == ERR_OK
             assert a.mailbox == k and a.answer(k).owner == a.session
 
@@ -96,11 +88,11 @@ def test_a_client_silent_past_the_lease_is_told_it_cannot_know(
         k = a.mailbox
         assert k is not None
         pending = a.submit(CMD_MOVE_JOINTS, args=(3.0, 70.0, 65.0))
-        _wait_scans(a, LEASE_SCANS + 20)  # answered, then the lease ran out
+        a.wait_scans(LEASE_SCANS + 20, timeout_s=20.0)  # answered, then the lease ran out
         b = ArmControllerClient(modbus)
         address, words = b.block_words(k, 5, 10)  # b claims exactly that mailbox (Hello)
         modbus.write_registers(address, words)
-        _wait_scans(b, 3)
+        b.wait_scans(3, timeout_s=20.0)
         assert b.answer(k).owner == b.session
         with pytest.raises(HandshakeLost, match="may or may not have run"):
             a.wait(pending)

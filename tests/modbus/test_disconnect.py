@@ -35,14 +35,6 @@ def _client(address: tuple[str, int]) -> tuple[PlcClient, ArmControllerClient]:
     return modbus, ArmControllerClient(modbus)
 
 
-def _wait_scans(ctl: ArmControllerClient, scans: int = SCANS) -> None:
-    start = ctl.scan_count()
-    deadline = time.monotonic() + 5.0
-    while ctl.scan_count() - start < scans:
-        assert time.monotonic() < deadline, "the PLC stopped scanning"
-        time.sleep(0.002)
-
-
 def _snapshot(ctl: ArmControllerClient) -> tuple[Status, list[int]]:
     st = ctl.status()
     return st, ctl.channel_words()
@@ -59,7 +51,7 @@ def _nothing_ran(address: tuple[str, int], before: tuple[Status, list[int]]) -> 
     """A new client sees the state from before, after a few scans, and is served."""
     modbus, ctl = _client(address)
     try:
-        _wait_scans(ctl)
+        ctl.wait_scans(SCANS)
         _unchanged(ctl, before)
     finally:
         modbus.close()
@@ -86,7 +78,7 @@ def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int
                                      args=(30.0, 80.0, 70.0))
     for i in (0, 1, 4, 5, 10):  # Seq, Code, first word of Arg1
         modbus.write_register(address + i, words[i])
-    _wait_scans(ctl)
+    ctl.wait_scans(SCANS)
     mailbox = ctl.mailbox
     assert mailbox is not None
     answer = ctl.answer(mailbox)  # the owner is told: the block was not whole
@@ -115,7 +107,7 @@ def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) 
         # the next client would be lost. Give it one accept period (plus margin) to take the
         # raw connection first; the soft PLC does not need this.
         time.sleep(ACCEPT_PERIOD_S)
-        _wait_scans(ctl)
+        ctl.wait_scans(SCANS)
         _unchanged(ctl, before)
     _nothing_ran(plc_address, before)
 

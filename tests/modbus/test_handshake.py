@@ -40,14 +40,6 @@ from armbench.softplc.modbus_client import PlcClient
 SCANS = 3
 
 
-def _wait_scans(ctl: ArmControllerClient, scans: int = SCANS) -> None:
-    start = ctl.scan_count()
-    deadline = time.monotonic() + 5.0
-    while ctl.scan_count() - start < scans:
-        assert time.monotonic() < deadline, "the PLC stopped scanning"
-        time.sleep(0.002)
-
-
 @pytest.fixture
 def second(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
     """A second client on its own connection, with its own session and mailbox."""
@@ -100,12 +92,12 @@ def test_rewriting_only_seq_runs_nothing(plc: ArmControllerClient) -> None:
     answered = _seq(plc)
     # FC16 of Seq alone: the stale MoveJoints arguments and Check do not match a new Seq
     plc.plc.write_registers(seq_reg.address, mm.dint_to_words(next_seq(answered)))
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     a = plc.answer(plc.mailbox)
     assert (a.ack_seq, a.result) == (next_seq(answered), ERR_BAD_CHECK)
     # FC06 of the low word only
     plc.plc.write_register(seq_reg.address + 1, (next_seq(next_seq(answered))) & 0xFFFF)
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     assert plc.answer(plc.mailbox).result == ERR_BAD_CHECK
     after = plc.status()
     assert (after.joints_deg, after.pulses_us) == (before.joints_deg, before.pulses_us)
@@ -124,7 +116,7 @@ def test_a_burst_of_commands_is_never_silently_skipped(plc: ArmControllerClient)
         seq = next_seq(seq)
         address, words = plc.block_words(plc.mailbox, seq, CMD_MOVE_JOINTS, args=pose)
         plc.plc.write_registers(address, words)
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     a = plc.answer(plc.mailbox)
     st = plc.status()
     assert a.ack_seq == seq
@@ -148,7 +140,7 @@ def test_a_foreign_block_in_an_owned_mailbox_is_not_run(plc: ArmControllerClient
     address, words = plc.block_words(second.mailbox, next_seq(theirs.ack_seq), CMD_MOVE_JOINTS,
                                      args=(30.0, 80.0, 70.0))
     plc.plc.write_registers(address, words)
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     after = plc.status()
     assert second.answer(second.mailbox) == theirs  # not answered, owner unchanged
     assert after.joints_deg == before.joints_deg
@@ -219,12 +211,12 @@ def test_close_frees_the_mailbox_and_a_new_session_can_claim_it(
     # a raw claim of that very mailbox by a new session, with any Seq
     address, words = plc.block_words(k, 999, CMD_HELLO, session=777001)
     plc.plc.write_registers(address, words)
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     a = plc.answer(k)
     assert (a.owner, a.ack_seq, a.result) == (777001, 999, ERR_OK)
     address, words = plc.block_words(k, 1000, CMD_CLOSE, session=777001)
     plc.plc.write_registers(address, words)
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     assert plc.answer(k).owner == 0
 
 
@@ -278,7 +270,7 @@ def test_every_output_heals_within_a_scan(plc: ArmControllerClient) -> None:
         r = regs[n]
         plc.plc.write_registers(r.address, [0x7FC0 if i == 0 else 0x1234 for i in range(r.count)])
     plc.plc.write_coil(regs["PWMINITREQUEST"].address, True)
-    _wait_scans(plc, 2)
+    plc.wait_scans(2)
     after = _read_outputs(plc, names)
     diff = [n for n in names if n not in moving and after[n] != before[n]]
     assert diff == []
@@ -295,7 +287,7 @@ def test_spoofed_state_cannot_wedge_or_replay(plc: ArmControllerClient) -> None:
     plc.plc.write_registers(regs["CTLSTATE"].address, mm.dint_to_words(1))
     plc.plc.write_registers(regs["BUSYMAILBOX"].address, mm.dint_to_words(plc.mailbox))
     plc.plc.write_registers(regs[f"MBX{plc.mailbox:02d}ACKSEQ"].address, mm.dint_to_words(0))
-    _wait_scans(plc)
+    plc.wait_scans(SCANS)
     st = plc.status()
     assert st.state == 0 and st.busy_mailbox == 0
     assert st.commands_answered == answered  # nothing replayed
