@@ -199,7 +199,7 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     s.add_argument("--idle-timeout", type=float, default=None, metavar="S",
                    help="close a Modbus connection that sends no request for S seconds "
-                   "(default 60; 0: never)")
+                   "(default 300; 0: never)")
     s.add_argument("--max-clients", type=int, default=None, metavar="N",
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")

@@ -253,9 +253,9 @@ def test_bad_limits_are_rejected(
 
 def test_defaults() -> None:
     # The values documented in docs/modbus-parity.md and `armbench serve --help`.
-    assert (DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS) == (60.0, 64)
+    assert (DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS) == (300.0, 64)
     srv = ModbusServer(ProcessImage.allocate())
-    assert (srv.idle_timeout_s, srv.max_clients) == (60.0, 64)
+    assert (srv.idle_timeout_s, srv.max_clients) == (300.0, 64)
 
 
 # -- no leaks -------------------------------------------------------------------------------

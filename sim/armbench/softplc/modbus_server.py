@@ -27,7 +27,7 @@ answers the way the runtime does, not the way the Modbus specification would:
 Not copied: the runtime's accept loop takes one connection per 100 ms and can lose a client
 that connects within that window; this server accepts at once. The runtime has no idle
 timeout and no connection limit (one thread per connection, for ever); this server closes a
-connection that completes no request for ``idle_timeout_s`` (default 60 s) and, when
+connection that completes no request for ``idle_timeout_s`` (default 300 s) and, when
 ``max_clients`` connections (default 64) are open, makes room for a new client by closing the
 one that has been idle longest, so forgotten, half-open or trickling connections can never
 lock a client out. The runtime always binds every interface; this server binds loopback by
@@ -73,9 +73,11 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_HOST: Final = "127.0.0.1"
 DEFAULT_PORT: Final = 5020
-# Long enough for any polling client and for a person pausing in a REPL, short enough that a
-# vanished peer (cable pulled, process killed without FIN) frees its thread within a minute.
-DEFAULT_IDLE_TIMEOUT_S: Final = 60.0
+# Lockout is prevented by closing the longest-idle connection when the table is full, so the
+# timeout only has to free the thread and socket of a vanished peer (cable pulled, process
+# killed without FIN) eventually; it can be long enough for a person pausing in a REPL, after
+# which a pymodbus client's next request fails once and the one after reconnects.
+DEFAULT_IDLE_TIMEOUT_S: Final = 300.0
 DEFAULT_MAX_CLIENTS: Final = 64
 SERVER_DEVICE_FAILURE: Final = 4
 
@@ -373,8 +375,8 @@ def non_loopback_warning(host: str, port: int) -> str | None:
     where = "all network interfaces" if host == "0.0.0.0" else "a non-loopback address"
     return (
         f"Modbus TCP on {host}:{port} listens on {where}: any host that can reach this port "
-        "can write any register and move the servos (Modbus has no authentication). Use "
-        "--host 127.0.0.1 unless the network is isolated and trusted."
+        "can write any register and move the servos (Modbus has no authentication). Bind "
+        "127.0.0.1 (the default) unless the network is isolated and trusted."
     )
 
 
