@@ -7,17 +7,23 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from .compiler import CompileFailed, check_files
 from .compiler.build import BuildError, build
 from .compiler.driver import emit_files, expand
 from .faults import PlcFault
+
+if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
+    from .softplc.loader import LoadedProgram
+    from .softplc.modbus_server import ModbusServer
+    from .softplc.scan import SoftPlc
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
@@ -99,12 +105,29 @@ def _finite(o: object) -> object:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.loader import load_program
-    from .softplc.modbus_server import ModbusServer
+    from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
     from .softplc.scan import SoftPlc
 
     prog = load_program(_files(args.files))
     plc = SoftPlc(prog)
-    server = ModbusServer(prog.image, plc.lock, host=args.host, port=args.port)
+    server = ModbusServer(
+        prog.image, plc.lock, host=args.host, port=args.port,
+        max_clients=DEFAULT_MAX_CLIENTS if args.max_clients is None else args.max_clients,
+        idle_timeout_s=DEFAULT_IDLE_TIMEOUT_S if args.idle_timeout is None else args.idle_timeout)
+    # The server's warnings (non-loopback address, failed requests) as one stderr line each;
+    # without a handler only Python's bare last-resort output would show them.
+    to_stderr = logging.StreamHandler(sys.stderr)
+    to_stderr.setFormatter(logging.Formatter("armbench: %(levelname)s: %(message)s"))
+    server_log = logging.getLogger(ModbusServer.__module__)
+    server_log.addHandler(to_stderr)
+    try:
+        return _serve(args, prog, plc, server)
+    finally:
+        server_log.removeHandler(to_stderr)
+
+
+def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
+           server: ModbusServer) -> int:
     try:
         server.start()
     except OSError as exc:
@@ -174,6 +197,12 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--host", default="127.0.0.1")
     s.add_argument("--port", type=int, default=5020)
     s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    s.add_argument("--idle-timeout", type=float, default=None, metavar="S",
+                   help="close a Modbus connection that sends no request for S seconds "
+                   "(default 300; 0: never)")
+    s.add_argument("--max-clients", type=int, default=None, metavar="N",
+                   help="Modbus connections open at once; when full, a new client replaces "
+                   "the connection idle longest (default 64)")
     s.set_defaults(func=cmd_serve)
     x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML "
                        "(default: st/*.st + plc_project/Controller.st -> plc_project/)")

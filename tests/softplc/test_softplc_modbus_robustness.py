@@ -137,15 +137,20 @@ def test_concurrent_clients(image: ProcessImage, server: ModbusServer) -> None:
     assert [image.mw[4 * n + 1] for n in range(8)] == [99] * 8
 
 
-def test_client_limit(image: ProcessImage) -> None:
+def test_client_limit_closes_the_longest_idle(image: ProcessImage) -> None:
     with ModbusServer(image, port=0, max_clients=2) as srv:
         with connect(srv) as a, connect(srv) as b:
             for s in (a, b):
                 s.sendall(frame(READ_QW0))
                 recv_reply(s)
             with connect(srv) as c:
-                assert closed_by_peer(c)
-        # The slots free up once the server threads have seen a and b close.
+                # The table is full: c is served, a (idle longest) makes room, b stays.
+                c.sendall(frame(READ_QW0, transaction=3))
+                assert recv_reply(c) == (3, b"\x03\x02\x00\x00")
+                assert closed_by_peer(a)
+                b.sendall(frame(READ_QW0, transaction=2))
+                assert recv_reply(b) == (2, b"\x03\x02\x00\x00")
+        # The slots free up once the server threads have seen b and c close.
         deadline = time.monotonic() + 10
         while srv.client_count:
             assert time.monotonic() < deadline

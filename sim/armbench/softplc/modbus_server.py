@@ -25,21 +25,33 @@ answers the way the runtime does, not the way the Modbus specification would:
 * Trailing bytes after a complete PDU are ignored; a PDU shorter than 5 bytes is exception 3.
 
 Not copied: the runtime's accept loop takes one connection per 100 ms and can lose a client
-that connects within that window; this server accepts at once.
+that connects within that window; this server accepts at once. The runtime has no idle
+timeout and no connection limit (one thread per connection, for ever); this server closes a
+connection that completes no request for ``idle_timeout_s`` (default 300 s) and, when
+``max_clients`` connections (default 64) are open, makes room for a new client by closing the
+one that has been idle longest, so forgotten, half-open or trickling connections can never
+lock a client out. The runtime always binds every interface; this server binds loopback by
+default and logs a warning when bound to anything else.
 
 Threading model: one accept thread (selector + wake-up socket so ``stop`` needs no polling)
-and one thread per connection with a blocking socket. A connection that sends a broken frame
-is dropped without affecting the others.
+and one thread per connection with a blocking socket. The accept thread also enforces the
+idle timeout: it sleeps in ``select`` until the oldest deadline and shuts expired sockets
+down, which wakes their threads (blocked in ``recv``, or in ``sendall`` to a peer that does
+not read) so they close and exit. A connection thread only records the time of each complete
+request, so the request path costs one clock read more. A connection that sends a broken
+frame is dropped without affecting the others.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import logging
 import selectors
 import socket
 import struct
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final
@@ -61,6 +73,12 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_HOST: Final = "127.0.0.1"
 DEFAULT_PORT: Final = 5020
+# Lockout is prevented by closing the longest-idle connection when the table is full, so the
+# timeout only has to free the thread and socket of a vanished peer (cable pulled, process
+# killed without FIN) eventually; it can be long enough for a person pausing in a REPL, after
+# which a pymodbus client's next request fails once and the one after reconnects.
+DEFAULT_IDLE_TIMEOUT_S: Final = 300.0
+DEFAULT_MAX_CLIENTS: Final = 64
 SERVER_DEVICE_FAILURE: Final = 4
 
 # OpenPLC v3 runtime limits (docs/modbus-parity.md), not the Modbus spec's (2000 bits, 125
@@ -349,11 +367,40 @@ class PduHandler:
             address = stop
 
 
+def non_loopback_warning(host: str, port: int) -> str | None:
+    """The warning for a listener bound to ``host`` (an IPv4 address as the socket reports
+    it), or None when only this machine can connect."""
+    if ipaddress.ip_address(host).is_loopback:
+        return None
+    where = "all network interfaces" if host == "0.0.0.0" else "a non-loopback address"
+    return (
+        f"Modbus TCP on {host}:{port} listens on {where}: any host that can reach this port "
+        "can write any register and move the servos (Modbus has no authentication). Bind "
+        "127.0.0.1 (the default) unless the network is isolated and trusted."
+    )
+
+
+@dataclass(eq=False)
+class _Connection:
+    """One client connection; ``last_request`` is written by its own thread only."""
+
+    sock: socket.socket
+    peer: str
+    last_request: float  # time.monotonic() of the accept or of the last complete request
+    thread: threading.Thread | None = None
+    closing: bool = False  # shut down by the server: no longer counts towards max_clients
+
+
 class ModbusServer:
     """Modbus TCP server for one image.
 
     ``port=0`` binds a free port; read the chosen one from :attr:`port` after :meth:`start`.
     Pass the soft PLC's ``lock`` so requests interleave with scans, never inside one.
+
+    ``idle_timeout_s``: a connection that completes no request for this long is closed (bytes
+    of an unfinished frame do not count, so a trickling or half-sent request does not keep it
+    open); None or 0 turns the timeout off. ``max_clients``: open connections; when all are
+    taken, a new client is accepted and the connection idle longest is closed to make room.
     """
 
     def __init__(
@@ -363,18 +410,30 @@ class ModbusServer:
         *,
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
-        max_clients: int = 64,
+        max_clients: int = DEFAULT_MAX_CLIENTS,
+        idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
     ) -> None:
+        if max_clients < 1:
+            raise ValueError(f"max_clients must be at least 1, not {max_clients}")
+        if idle_timeout_s is not None and not idle_timeout_s >= 0.0:  # also rejects NaN
+            raise ValueError(
+                f"idle timeout must be 0 (off) or a positive number of seconds, not "
+                f"{idle_timeout_s}"
+            )
         self.handler = PduHandler(image, lock if lock is not None else threading.Lock())
         self.host = host
         self._requested_port = port
         self.max_clients = max_clients
+        self.idle_timeout_s: float | None = idle_timeout_s or None
         self._listener: socket.socket | None = None
         self._wake_r: socket.socket | None = None
         self._wake_w: socket.socket | None = None
         self._accept_thread: threading.Thread | None = None
-        self._clients: dict[socket.socket, threading.Thread] = {}
+        # Also guards every shutdown()/close() of a client socket, so the accept thread never
+        # shuts down a descriptor number that its connection thread has just closed and that
+        # the process has already reused.
         self._clients_lock = threading.Lock()
+        self._clients: list[_Connection] = []
         self._closing = threading.Event()
 
     @property
@@ -387,6 +446,14 @@ class ModbusServer:
     @property
     def address(self) -> tuple[str, int]:
         return self.host, self.port
+
+    @property
+    def exposure_warning(self) -> str | None:
+        """The non-loopback warning :meth:`start` logged, or None on a loopback address."""
+        if self._listener is None:
+            raise RuntimeError("server not started")
+        host, port = self._listener.getsockname()
+        return non_loopback_warning(host, port)
 
     def start(self) -> None:
         if self._listener is not None:
@@ -403,6 +470,9 @@ class ModbusServer:
             listener.close()
             raise
         self._listener = listener
+        warning = self.exposure_warning
+        if warning is not None:
+            _log.warning("%s", warning)
         self._wake_r, self._wake_w = socket.socketpair()
         self._closing.clear()
         self._accept_thread = threading.Thread(
@@ -421,13 +491,12 @@ class ModbusServer:
         if self._accept_thread is not None:
             self._accept_thread.join(timeout_s)
         with self._clients_lock:
-            clients = list(self._clients.items())
-        for conn, _thread in clients:
-            # shutdown() wakes the thread blocked in recv(); it closes the socket itself.
-            with contextlib.suppress(OSError):
-                conn.shutdown(socket.SHUT_RDWR)
-        for _conn, thread in clients:
-            thread.join(timeout_s)
+            clients = list(self._clients)
+            for client in clients:
+                self._shut_down(client)
+        for client in clients:
+            if client.thread is not None:
+                client.thread.join(timeout_s)
         with self._clients_lock:
             self._clients.clear()
         for sock in (self._listener, self._wake_r, self._wake_w):
@@ -445,8 +514,17 @@ class ModbusServer:
 
     @property
     def client_count(self) -> int:
+        """Connection threads still running (including ones closing right now)."""
         with self._clients_lock:
-            return sum(thread.is_alive() for thread in self._clients.values())
+            return sum(c.thread is not None and c.thread.is_alive() for c in self._clients)
+
+    def _shut_down(self, client: _Connection) -> None:
+        """Make ``client``'s thread return; caller holds ``_clients_lock``. Never blocks."""
+        client.closing = True
+        # shutdown() wakes a thread blocked in recv() or sendall(); the thread closes the
+        # socket itself. OSError: it has already closed it.
+        with contextlib.suppress(OSError):
+            client.sock.shutdown(socket.SHUT_RDWR)
 
     def _accept_loop(self) -> None:
         assert self._listener is not None and self._wake_r is not None
@@ -454,50 +532,89 @@ class ModbusServer:
             selector.register(self._listener, selectors.EVENT_READ)
             selector.register(self._wake_r, selectors.EVENT_READ)
             while not self._closing.is_set():
-                for key, _events in selector.select():
+                for key, _events in selector.select(self._close_idle()):
                     if key.fileobj is self._listener:
                         self._accept_one()
+
+    def _close_idle(self) -> float | None:
+        """Shut down connections past the idle timeout and forget finished ones; returns
+        the seconds until the next connection can expire (None: nothing to wait for)."""
+        timeout = self.idle_timeout_s
+        now = time.monotonic()
+        oldest: float | None = None
+        with self._clients_lock:
+            # Finished connections stay listed until here (not removed by their own thread)
+            # so that stop() can join every thread that may still be running.
+            self._clients = [c for c in self._clients if c.thread is None or c.thread.is_alive()]
+            if timeout is None:
+                return None
+            for client in self._clients:
+                if client.closing:
+                    continue
+                last = client.last_request
+                if now - last >= timeout:
+                    _log.info("closing connection from %s: no request for %.3g s",
+                              client.peer, now - last)
+                    self._shut_down(client)
+                elif oldest is None or last < oldest:
+                    oldest = last
+        # The deadline may move on while we sleep (a request arrives); waking early then only
+        # costs one more pass.
+        return None if oldest is None else oldest + timeout - now
 
     def _accept_one(self) -> None:
         assert self._listener is not None
         try:
-            conn, _peer = self._listener.accept()
+            conn, peer = self._listener.accept()
         except (BlockingIOError, InterruptedError):
             return
         except OSError:
             _log.exception("accept failed")
             return
+        client = _Connection(conn, f"{peer[0]}:{peer[1]}", time.monotonic())
         with self._clients_lock:
-            # Finished connections stay listed until here (not removed by their own thread)
-            # so that stop() can join every thread that may still be running.
-            for old_conn, old_thread in list(self._clients.items()):
-                if not old_thread.is_alive():
-                    del self._clients[old_conn]
-            if self._closing.is_set() or len(self._clients) >= self.max_clients:
+            if self._closing.is_set():
                 conn.close()
                 return
+            open_clients = [c for c in self._clients if not c.closing]
+            if len(open_clients) >= self.max_clients:
+                # Refusing the newcomer would let forgotten or hostile idle connections lock
+                # everyone out; the longest-idle one is the least likely to be in use.
+                victim = min(open_clients, key=lambda c: c.last_request)
+                _log.info("%d connections open: closing the one idle longest (%s) for %s",
+                          len(open_clients), victim.peer, client.peer)
+                self._shut_down(victim)
             conn.setblocking(True)
             # Request/response traffic: Nagle would hold each small reply for the peer's ACK.
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            thread = threading.Thread(
-                target=self._serve_connection, args=(conn,), name="modbus-conn", daemon=True
+            client.thread = threading.Thread(
+                target=self._serve_connection, args=(client,), name="modbus-conn", daemon=True
             )
-            self._clients[conn] = thread
-        thread.start()
-
-    def _serve_connection(self, conn: socket.socket) -> None:
+            self._clients.append(client)
         try:
-            self._serve_frames(conn)
+            client.thread.start()
+        except RuntimeError:  # out of threads: this client cannot be served
+            _log.exception("cannot start a thread for %s", client.peer)
+            with self._clients_lock:
+                self._clients.remove(client)
+                conn.close()
+
+    def _serve_connection(self, client: _Connection) -> None:
+        try:
+            self._serve_frames(client)
         except OSError:
-            pass  # peer reset or server shutdown: nothing to answer any more
+            pass  # peer reset, idle timeout or server shutdown: nothing to answer any more
         except Exception:
             _log.exception("modbus connection failed")
         finally:
-            conn.close()
+            with self._clients_lock:
+                client.sock.close()
 
-    def _serve_frames(self, conn: socket.socket) -> None:
+    def _serve_frames(self, client: _Connection) -> None:
+        conn = client.sock
         handle = self.handler.handle
         mbap = _MBAP
+        clock = time.monotonic
         pending = b""
         while True:
             chunk = conn.recv(4096)
@@ -523,4 +640,7 @@ class ModbusServer:
                 pos = end
             pending = data[pos:]
             if replies:
+                # Only complete requests count as activity: a peer trickling bytes of a frame
+                # it never finishes still times out.
+                client.last_request = clock()
                 conn.sendall(replies[0] if len(replies) == 1 else b"".join(replies))
