@@ -38,9 +38,10 @@ ANGLE_FIELDS = ("Base", "Shoulder", "Elbow", "GripperUpDown", "Gripper", "ElbowR
 TOOL_FIELDS = ("GripperUpDown", "Gripper", "ElbowRotate", "GripperRotate")
 DEFAULT_GEO = {"A1": 100.0, "A2": 20.0, "A3": 120.0, "A4": 130.0}
 # float32 values exactly (what the PLC holds)
-F32_EXTREMES = [float(np.float32(v)) for v in (0.0, -0.0, 1.0, -1.0, 1.0e6, -1.0e6, 1.0000001e6, 1.0e30, -1.0e30,
-                1.0000001e30, 3.4028235e38, -3.4028235e38, 1.0e-45, math.nan, math.inf,
-                -math.inf)]
+F32_EXTREMES = [float(np.float32(v)) for v in (
+    0.0, -0.0, 1.0, -1.0, 1.0e6, -1.0e6, 1.0000001e6, 1.0e30, -1.0e30,
+    1.0000001e30, 3.4028235e38, -3.4028235e38, 1.0e-45, math.nan, math.inf, -math.inf,
+)]
 
 
 def f32(x: float) -> float:
@@ -176,16 +177,23 @@ def geometries(draw: st.DrawFn) -> dict[str, float]:
     kind = draw(st.integers(0, 9))
     if kind <= 5:
         return dict(DEFAULT_GEO)
-    if kind <= 8:
+    if kind <= 7:
         return {"A1": draw(st.floats(-500.0, 500.0, width=32)),
                 "A2": draw(st.floats(-200.0, 200.0, width=32)),
                 "A3": draw(st.floats(1.0, 1000.0, width=32)),
                 "A4": draw(st.floats(1.0, 1000.0, width=32))}
+    if kind == 8:  # up to the documented 1.0E6 mm, and just beyond
+        big = st.one_of(st.floats(2.0**-10, 1.0e6, width=32),
+                        st.sampled_from([1.0e6, f32(1.0000001e6)]))
+        return {"A1": draw(big) * draw(st.sampled_from([1.0, -1.0])),
+                "A2": draw(big) * draw(st.sampled_from([1.0, -1.0])),
+                "A3": draw(big), "A4": draw(big)}
     return {name: draw(any_real()) for name in ("A1", "A2", "A3", "A4")}
 
 
 def geometry_ok(g: dict[str, float]) -> bool:
-    return all(finite(v) for v in g.values()) and g["A3"] > 0.0 and g["A4"] > 0.0
+    return (all(abs(v) <= MAX_COORD_MM for v in g.values())  # NaN fails too
+            and g["A3"] > 0.0 and g["A4"] > 0.0)
 
 
 @given(g=geometries())
@@ -248,7 +256,7 @@ def ik_cases(draw: st.DrawFn) -> tuple[dict[str, float], dict[str, float], bool]
     +/-360 deg; the default and random geometries."""
     g = draw(geometries())
     kind = draw(st.integers(0, 9))
-    if kind <= 5 and geometry_ok(g) and max(abs(v) for v in g.values()) < 1e4:
+    if kind <= 5 and geometry_ok(g):
         base = draw(st.floats(-180.0, 180.0))
         shoulder = draw(st.floats(-180.0, 180.0))
         elbow = draw(st.one_of(st.floats(0.0, 360.0), st.sampled_from([0.0, 180.0, 360.0])))
@@ -272,9 +280,13 @@ def ik_cases(draw: st.DrawFn) -> tuple[dict[str, float], dict[str, float], bool]
                    for _ in range(3))
     tool = {}
     for name in TOOL_FIELDS:
-        tool[name] = draw(st.one_of(st.floats(-360.0, 360.0, width=32),
-                                    st.sampled_from([360.0, -360.0, f32(360.00003), 2.0e6]),
-                                    any_real()))
+        choice = draw(st.integers(0, 19))  # hypothesis favours small integers: plain draws
+        if choice == 19:
+            tool[name] = draw(any_real())
+        elif choice == 18:
+            tool[name] = draw(st.sampled_from([360.0, -360.0, f32(360.00003), 2.0e6]))
+        else:
+            tool[name] = draw(st.floats(-360.0, 360.0, width=32))
     target = {"X": x, "Y": y, "Z": z, **tool}
     return target, g, draw(st.booleans())
 
@@ -345,12 +357,16 @@ def check_ik_answer(
     return residual
 
 
-@settings(max_examples=1500)
+@settings(max_examples=800)
 @given(case=ik_cases())
 @example(case=({"X": -150.0, "Y": -1.0e-30, "Z": 100.0, "GripperUpDown": 0.0, "Gripper": 0.0,
                 "ElbowRotate": 0.0, "GripperRotate": 0.0}, DEFAULT_GEO, True))
 @example(case=({"X": 150.0, "Y": 0.0, "Z": 100.0, "GripperUpDown": 0.0, "Gripper": 0.0,
                 "ElbowRotate": 2.0e6, "GripperRotate": 0.0}, DEFAULT_GEO, True))
+@example(case=({"X": 506.0013732910156, "Y": 0.0, "Z": -0.0523359552025795,  # inner shell,
+                "GripperUpDown": 0.0, "Gripper": 0.0, "ElbowRotate": 0.0,  # a3 >> a4: the
+                "GripperRotate": 0.0}, {"A1": 0.0, "A2": 0.0, "A3": 507.0, "A4": 1.0},  # acos
+               False))  # lost 0.014 mm
 def test_inverse_kinematik_v1_and_check(
     st_module: Any, figures: Any, case: tuple[dict[str, float], dict[str, float], bool]
 ) -> None:
@@ -367,7 +383,7 @@ def test_inverse_kinematik_v1_and_check(
     figures.error("InverseKinematik_V1", residual, "mm (FK64 of answer - target)")
 
 
-@settings(max_examples=1000)
+@settings(max_examples=500)
 @given(case=ik_cases())
 def test_arm_kinematics_block(
     st_module: Any, figures: Any, case: tuple[dict[str, float], dict[str, float], bool]
@@ -401,7 +417,7 @@ def dh_robot() -> Any:
     return build
 
 
-@settings(max_examples=1500)
+@settings(max_examples=800)
 @given(case=ik_cases())
 def test_inverse_kinematik_dh_valid_means_on_target(
     st_module: Any, figures: Any, dh_robot: Any,
