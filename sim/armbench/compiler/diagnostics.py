@@ -65,6 +65,8 @@ CODES: dict[str, tuple[str, str]] = {
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
     "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
     "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
+    "N0001": ("file is not UTF-8: read as Windows-1252 (cp1252); a note, not an error",
+              "nothing if the accented characters show right; else save the file as UTF-8"),
 }
 
 
@@ -89,6 +91,14 @@ class Diagnostics:
         if code not in CODES:
             raise KeyError(f"diagnostic code {code} is not in the CODES table")
         d = Diagnostic(pos, code, message)
+        if d not in self.items:
+            self.items.append(d)
+
+    def note(self, pos: SourcePos, code: str, message: str) -> None:
+        """Information that does not fail the check (e.g. the encoding a file was read in)."""
+        if code not in CODES:
+            raise KeyError(f"diagnostic code {code} is not in the CODES table")
+        d = Diagnostic(pos, code, message, "note")
         if d not in self.items:
             self.items.append(d)
 
