@@ -1,6 +1,7 @@
-"""armbench command line: check, build, run, serve.
+"""armbench command line: check, build, run, serve, export, demo.
 
-Exit codes: 0 ok, 1 diagnostics or fault, 2 usage.
+Programs are compiled with the armbench ST library (armbench.locate) unless --no-library.
+Exit codes: 0 ok, 1 diagnostics or fault, 2 usage (one line on stderr).
 """
 
 from __future__ import annotations

@@ -81,7 +81,8 @@ def test_export_writes_cp1252_sources_as_utf8(tmp_path: Path) -> None:
     program = GOOD + ("PROGRAM Main\nVAR r AT %MD0 : REAL; END_VAR\n  r := Twice(1.0);\n"
                       "END_PROGRAM\nCONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
                       "    TASK MainTask(INTERVAL := T#10ms, PRIORITY := 0);\n"
-                      "    PROGRAM inst0 WITH MainTask : Main;\n  END_RESOURCE\nEND_CONFIGURATION\n")
+                      "    PROGRAM inst0 WITH MainTask : Main;\n"
+                      "  END_RESOURCE\nEND_CONFIGURATION\n")
     src = write(tmp_path, "legacy.st", program.encode("cp1252"))
     text = generate([src]).files[OPENPLC_FILE].decode("utf-8")
     assert "Winkel in \u00b0, f\u00fcr Gr\u00f6\u00dfen" in text

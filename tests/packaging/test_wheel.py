@@ -36,7 +36,7 @@ OFFLINE_SIGNS = ("No matching distribution found", "Could not find a version",
                  "NewConnectionError", "Temporary failure in name resolution",
                  "Network is unreachable", "Failed to establish a new connection")
 
-USER_PROGRAM = """(* A user's program, saved by CODESYS V2 in cp1252: Winkel 180\u00b0, f\u00fcr Tests *)
+USER_PROGRAM = """(* A user's program from CODESYS V2, cp1252: Winkel 180\u00b0, f\u00fcr Tests *)
 PROGRAM UserMain
 VAR
   half AT %MD0 : REAL;
