@@ -17,17 +17,17 @@ def port(text: str) -> int:
 
 def count(text: str) -> int:
     """A count that may be zero: 0, 1, 2, ..."""
-    value = _int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {value}")
-    return value
+    return _at_least(_int(text), 0)
 
 
 def positive_count(text: str) -> int:
     """A count of at least one."""
-    value = _int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be 1 or more, got {value}")
+    return _at_least(_int(text), 1)
+
+
+def _at_least(value: int, low: int) -> int:
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be {low} or more, got {value}")
     return value
 
 

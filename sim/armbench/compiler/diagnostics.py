@@ -88,17 +88,15 @@ class Diagnostics:
     items: list[Diagnostic] = field(default_factory=list)
 
     def error(self, pos: SourcePos, code: str, message: str) -> None:
-        if code not in CODES:
-            raise KeyError(f"diagnostic code {code} is not in the CODES table")
-        d = Diagnostic(pos, code, message)
-        if d not in self.items:
-            self.items.append(d)
+        self._add(Diagnostic(pos, code, message))
 
     def note(self, pos: SourcePos, code: str, message: str) -> None:
         """Information that does not fail the check (e.g. the encoding a file was read in)."""
-        if code not in CODES:
-            raise KeyError(f"diagnostic code {code} is not in the CODES table")
-        d = Diagnostic(pos, code, message, "note")
+        self._add(Diagnostic(pos, code, message, "note"))
+
+    def _add(self, d: Diagnostic) -> None:
+        if d.code not in CODES:
+            raise KeyError(f"diagnostic code {d.code} is not in the CODES table")
         if d not in self.items:
             self.items.append(d)
 
