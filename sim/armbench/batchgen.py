@@ -17,7 +17,19 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-CONTROLLER = Path(__file__).resolve().parents[2] / "plc_project" / "Controller.st"
+from .locate import LocateError, find_checkout
+
+
+def _controller() -> Path:
+    """Controller.st of the checkout this generator rewrites (found from the current
+    directory); outside a checkout, stop with one line instead of a traceback."""
+    try:
+        return find_checkout().controller
+    except LocateError as exc:
+        raise SystemExit(f"python -m armbench.batchgen: {exc}") from None
+
+
+CONTROLLER = _controller()
 POINTS = 32
 TARGETS_MD = 400  # %MD of BatchX01
 RESULTS_MD = 500  # %MD of ResBase01

@@ -1,6 +1,7 @@
-"""armbench command line: check, build, run, serve.
+"""armbench command line: check, build, run, serve, export, demo.
 
-Exit codes: 0 ok, 1 diagnostics or fault, 2 usage.
+Programs are compiled with the armbench ST library (armbench.locate) unless --no-library.
+Exit codes: 0 ok, 1 diagnostics or fault, 2 usage (one line on stderr).
 """
 
 from __future__ import annotations
@@ -9,16 +10,28 @@ import argparse
 import json
 import logging
 import math
+import re
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
-from .compiler import CompileFailed, check_files
+from . import argtypes
+from .compiler import CompileFailed
 from .compiler.build import BuildError, build
-from .compiler.driver import emit_files, expand
+from .compiler.diagnostics import Diagnostic
+from .compiler.driver import analyse, emit_files, expand
 from .faults import PlcFault
+from .locate import (
+    LibrarySelection,
+    LocateError,
+    NotACheckout,
+    declared_names,
+    default_project,
+    find_checkout,
+    with_library,
+)
 
 if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
     from .softplc.loader import LoadedProgram
@@ -28,38 +41,86 @@ if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
 
+class UsageError(Exception):
+    """Bad command line: one line on stderr, exit code 2."""
+
+
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # argparse exits 2 too; one message style
-        self.print_usage(sys.stderr)
-        print(f"armbench: error: {message}", file=sys.stderr)
-        raise SystemExit(EXIT_USAGE)
+    def error(self, message: str) -> NoReturn:
+        # argparse prints the whole usage block; one line naming the command is enough
+        raise UsageError(f"{self.prog}: error: {message} (see {self.prog} --help)")
 
 
-def _files(paths: Sequence[str]) -> list[Path]:
+def _given(paths: Sequence[str]) -> list[Path]:
     files = expand(paths)
-    missing = [str(f) for f in files if not f.exists()]
+    missing = [str(f) for f in files if not f.is_file()]
     if missing:
-        print(f"armbench: error: no such file: {', '.join(missing)}", file=sys.stderr)
-        raise SystemExit(EXIT_USAGE)
+        raise UsageError(f"armbench: error: no such file: {', '.join(missing)}")
     if not files:
-        print("armbench: error: no .st files given", file=sys.stderr)
-        raise SystemExit(EXIT_USAGE)
+        raise UsageError(f"armbench: error: no .st files in {', '.join(paths)}")
     return files
 
 
+def _select(args: argparse.Namespace) -> LibrarySelection:
+    """The given files plus the armbench ST library (the files they do not replace), unless
+    --no-library. Notes about left-out library files go to stderr."""
+    given = _given(args.files)
+    if args.no_library:
+        return LibrarySelection(given)
+    selection = with_library(given, default_project().library())
+    for note in selection.notes:
+        print(f"armbench: note: {note}", file=sys.stderr)
+    return selection
+
+
+def _files(args: argparse.Namespace) -> list[Path]:
+    return _select(args).files
+
+
+def _library_hint(diags: Sequence[Diagnostic]) -> str | None:
+    """With --no-library: which library files declare the names the program misses."""
+    unknown = {m.upper() for d in diags if d.code in ("E0200", "E0400")
+               for m in re.findall(r"'(\w+)'", d.message)}
+    files = [lib.name for lib in default_project().library() if declared_names(lib) & unknown]
+    if not files:
+        return None
+    return (f"armbench: note: unknown names are declared in the armbench library "
+            f"({', '.join(files)}): drop --no-library, or pass those files too")
+
+
 def cmd_check(args: argparse.Namespace) -> int:
-    diags = check_files(_files(args.files))
-    for d in diags:
+    if args.files:
+        selection = _select(args)
+        files, library = selection.files, len(selection.added)
+    else:  # the library and the controller the tools use
+        files, library = default_project().sources(), -1
+    prog, diags = analyse(files)
+    items = diags.sorted()
+    for d in items:
         print(d.render())
-    if diags:
-        print(f"{len(diags)} error(s)", file=sys.stderr)
-        return EXIT_FAIL
-    return EXIT_OK
+    errors = sum(d.severity == "error" for d in items)
+    notes = len(items) - errors
+    what = f"{len(files)} file{'s' if len(files) != 1 else ''}"
+    if library > 0:
+        what += f" ({library} from the armbench library)"
+    elif library < 0:
+        what += " (the armbench library and plc_project/Controller.st)"
+    if prog is not None:
+        what += f", {len(prog.pous)} POU{'s' if len(prog.pous) != 1 else ''}"
+    summary = f"checked {what}: {errors} error{'s' if errors != 1 else ''}"
+    if notes:
+        summary += f", {notes} note{'s' if notes != 1 else ''}"
+    print(summary, file=sys.stderr)
+    if errors and args.no_library:
+        hint = _library_hint(items)
+        if hint:
+            print(hint, file=sys.stderr)
+    return EXIT_FAIL if errors else EXIT_OK
 
 
 def cmd_build(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    _, unit = emit_files(_files(args.files))
+    _, unit = emit_files(_files(args))
     lib = build(unit)
     dt = time.perf_counter() - t0
     print(f"{lib.path} ({'cached' if lib.cached else 'built'} in {dt:.3f} s; C: {lib.c_path})")
@@ -70,7 +131,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .softplc.loader import load_program
     from .softplc.scan import PlcState, SoftPlc
 
-    prog = load_program(_files(args.files))
+    prog = load_program(_files(args))
     plc = SoftPlc(prog)
     plc.run()
     base = min(t.interval_ns for t in prog.tasks)
@@ -108,7 +169,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
     from .softplc.scan import SoftPlc
 
-    prog = load_program(_files(args.files))
+    prog = load_program(_files(args))
     plc = SoftPlc(prog)
     server = ModbusServer(
         prog.image, plc.lock, host=args.host, port=args.port,
@@ -163,51 +224,90 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from .export import OUT_DIR, generate
+    from .export import generate
 
-    exp = generate(_files(args.files) if args.files else None)
-    out = Path(args.out) if args.out is not None else OUT_DIR
+    if args.regenerate:  # the project's own exports, from the checkout's own sources
+        if args.files or args.out is not None or args.no_library:
+            raise UsageError("armbench export: error: --regenerate rewrites the checkout's "
+                             "plc_project/ from its st/ and Controller.st: give no files, "
+                             "--out or --no-library with it")
+        project = find_checkout(args.repo)
+        exp = generate(project.sources(), project)
+        out = project.plc_project
+    else:
+        if args.out is None:
+            raise UsageError("armbench export: error: give --out DIR for the exported files "
+                             "(the repository's own plc_project/ is rewritten only by "
+                             "`armbench export --regenerate` in a checkout)")
+        if args.repo is not None:
+            raise UsageError("armbench export: error: --repo goes with --regenerate")
+        exp = generate(_files(args) if args.files else None)
+        out = Path(args.out)
     if args.check:
         stale = exp.stale(out)
         for path, why in stale:
-            print(f"stale: {path} ({why}); regenerate with `armbench export`")
+            print(f"stale: {path} ({why}); regenerate with `armbench export "
+                  + ("--regenerate`" if args.regenerate else f"--out {args.out}`"))
         return EXIT_FAIL if stale else EXIT_OK
     for path in exp.write(out):
         print(f"wrote {path}")
     return EXIT_OK
 
 
+def _library_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--no-library", action="store_true",
+                   help="do not add the armbench ST library (default: its files are added, "
+                   "except those your files replace)")
+
+
 def make_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="armbench", description="ST compiler, soft PLC and test bench for the "
-                "arm-kinematics library")
+                "arm-kinematics library. Programs are compiled together with the armbench ST "
+                "library (st/*.st, shipped with the package) unless --no-library.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     c = sub.add_parser("check", help="portability and type check (exit 1 on error)")
-    c.add_argument("files", nargs="+", help=".st files or folders")
+    c.add_argument("files", nargs="*", help=".st files or folders (default: the armbench "
+                   "library and plc_project/Controller.st)")
+    _library_option(c)
     c.set_defaults(func=cmd_check)
     b = sub.add_parser("build", help="compile to a cached shared library")
     b.add_argument("files", nargs="+")
+    _library_option(b)
     b.set_defaults(func=cmd_build)
     r = sub.add_parser("run", help="run the CONFIGURATION headless")
     r.add_argument("files", nargs="+")
-    r.add_argument("--cycles", type=int, default=1, help="scans of the fastest task")
+    _library_option(r)
+    r.add_argument("--cycles", type=argtypes.count, default=1,
+                   help="scans of the fastest task (1)")
     r.add_argument("--dump", action="store_true", help="print program variables as JSON")
     r.set_defaults(func=cmd_run)
     s = sub.add_parser("serve", help="run in real time and serve Modbus TCP")
     s.add_argument("files", nargs="+")
+    _library_option(s)
     s.add_argument("--host", default="127.0.0.1")
-    s.add_argument("--port", type=int, default=5020)
-    s.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    s.add_argument("--idle-timeout", type=float, default=None, metavar="S",
+    s.add_argument("--port", type=argtypes.port, default=5020, help="0..65535 (5020; 0: any)")
+    s.add_argument("--duration", type=argtypes.seconds, default=None,
+                   help="stop after S seconds")
+    s.add_argument("--idle-timeout", type=argtypes.seconds, default=None, metavar="S",
                    help="close a Modbus connection that sends no request for S seconds "
                    "(default 300; 0: never)")
-    s.add_argument("--max-clients", type=int, default=None, metavar="N",
+    s.add_argument("--max-clients", type=argtypes.positive_count, default=None, metavar="N",
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")
     s.set_defaults(func=cmd_serve)
-    x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML "
-                       "(default: st/*.st + plc_project/Controller.st -> plc_project/)")
-    x.add_argument("files", nargs="*", help=".st files or folders (default: the project)")
-    x.add_argument("--out", default=None, help="output folder (default: plc_project/)")
+    x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML of a "
+                       "program (with the library) into --out, or regenerate the "
+                       "repository's own plc_project/ exports")
+    x.add_argument("files", nargs="*", help=".st files or folders (default: the armbench "
+                   "library and plc_project/Controller.st)")
+    _library_option(x)
+    x.add_argument("--out", default=None, help="output folder")
+    x.add_argument("--regenerate", action="store_true",
+                   help="rewrite the checkout's plc_project/ exports from its st/*.st and "
+                   "plc_project/Controller.st")
+    x.add_argument("--repo", default=None,
+                   help="the checkout for --regenerate (default: found from the current "
+                   "directory)")
     x.add_argument("--check", action="store_true",
                    help="write nothing; exit 1 when the files in the output folder are stale")
     x.set_defaults(func=cmd_export)
@@ -220,14 +320,24 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = make_parser().parse_args(argv)
+    args: argparse.Namespace | None = None
     try:
+        args = make_parser().parse_args(argv)
         rc: int = args.func(args)
         return rc
+    except (UsageError, NotACheckout) as exc:
+        msg = str(exc)
+        print(msg if msg.startswith("armbench") else f"armbench: error: {msg}",
+              file=sys.stderr)
+        return EXIT_USAGE
     except CompileFailed as exc:
         print(str(exc))
+        if args is not None and getattr(args, "no_library", False):
+            hint = _library_hint(exc.diagnostics)
+            if hint:
+                print(hint, file=sys.stderr)
         return EXIT_FAIL
-    except (BuildError, ValueError, KeyError) as exc:
+    except (BuildError, LocateError, ValueError, KeyError) as exc:
         print(f"armbench: error: {exc}", file=sys.stderr)
         return EXIT_FAIL
     except PlcFault as exc:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
+from . import argtypes
 from .controller_client import ArmControllerClient, Calibration
 from .plant import arm
 from .plant.pca9685 import PCA9685
@@ -179,6 +180,8 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
         centre: tuple[float, float, float] = (150.0, 0.0, 120.0),
         out: TextIO | None = None, out_dir: Path | None = DEFAULT_OUT,
         poll_ms: float = 0.5) -> int:
+    if points < 1:
+        raise ValueError(f"the circle needs at least 1 point, got {points}")
     stream = out if out is not None else sys.stdout
     write = stream.write
 
@@ -267,14 +270,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--points", type=int, default=360, help="points on the circle (360)")
-    p.add_argument("--radius", type=float, default=40.0, help="mm (40)")
+    p.add_argument("--points", type=argtypes.positive_count, default=360,
+                   help="points on the circle (360)")
+    p.add_argument("--radius", type=argtypes.positive_length, default=40.0, help="mm (40)")
     p.add_argument("--plane", choices=("xy", "xz"), default="xy",
                    help="xy horizontal (default) or xz vertical, centre (150, 0, 120) mm")
     p.add_argument("--out", default=str(DEFAULT_OUT),
                    help="folder for the PNG plots (out/demo, git-ignored)")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
-    p.add_argument("--poll-ms", type=float, default=0.5,
+    p.add_argument("--poll-ms", type=argtypes.seconds, default=0.5,
                    help="sleep between answer polls in ms (0.5; 0 = busy loop)")
 
 

@@ -21,9 +21,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-ST_DIR = REPO / "st"
-OUT_DIR = REPO / "docs" / "reference"
+from .locate import LocateError, find_checkout
+
+# Inside the checkout the pages are generated for (armbench.locate.find_checkout).
+ST_DIR = Path("st")
+OUT_DIR = Path("docs") / "reference"
 
 _POU_RE = re.compile(r"^(FUNCTION_BLOCK|FUNCTION)\s+(\w+)(?:\s*:\s*(\w+))?", re.IGNORECASE)
 _END_POU_RE = re.compile(r"^END_(FUNCTION_BLOCK|FUNCTION)\b", re.IGNORECASE)
@@ -283,10 +285,20 @@ def render_all(st_paths: Sequence[Path]) -> dict[str, str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--st-dir", type=Path, default=ST_DIR)
-    parser.add_argument("--out", type=Path, default=OUT_DIR)
+    parser.add_argument("--repo", type=Path, default=None,
+                        help="the checkout (default: found from the current directory)")
+    parser.add_argument("--st-dir", type=Path, default=None, help="default: st/ of the checkout")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="default: docs/reference/ of the checkout")
     parser.add_argument("--check", action="store_true", help="fail when pages are stale")
     args = parser.parse_args(argv)
+    if args.st_dir is None or args.out is None:
+        try:
+            root = find_checkout(args.repo).root
+        except LocateError as exc:
+            parser.error(str(exc))
+        args.st_dir = args.st_dir or root / ST_DIR
+        args.out = args.out or root / OUT_DIR
     pages = render_all(sorted(args.st_dir.glob("*.st")))
     stale = [
         name

@@ -43,8 +43,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-ST_DIR = REPO / "st"
+from .locate import LocateError, find_checkout
+
+ST_DIR = Path("st")  # inside the checkout (armbench.locate.find_checkout)
 TABLES_FILE = "KinematicsFixedTables.st"
 
 SEGMENTS = 256  # table intervals; entries = SEGMENTS + 1
@@ -237,10 +238,18 @@ def write_tables(out_dir: Path) -> Path:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m armbench.lutgen", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=ST_DIR, help="output folder (default st/)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (default: st/ of the checkout)")
+    parser.add_argument("--repo", type=Path, default=None,
+                        help="the checkout (default: found from the current directory)")
     parser.add_argument("--check", action="store_true",
                         help="compare with the file in --out instead of writing it")
     args = parser.parse_args(argv)
+    if args.out is None:
+        try:
+            args.out = find_checkout(args.repo).root / ST_DIR
+        except LocateError as exc:
+            parser.error(str(exc))
     if args.check:
         path = args.out / TABLES_FILE
         current = path.read_bytes() if path.exists() else b""

@@ -22,14 +22,19 @@ from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
 from .compiler.symbols import InstanceModel
 from .compiler.types import StructType
+from .locate import LocateError, default_project, find_checkout, package_checkout
 from .softplc import modbus_map as mm
 
-REPO = Path(__file__).resolve().parents[2]
-LIBRARY_FILES = tuple(REPO / "st" / n for n in
+# The program the tools use (the wheel's copy, or the checkout's: armbench.locate).
+_PROJECT = default_project()
+LIBRARY_FILES = tuple(_PROJECT.st_dir / n for n in
                       ("ArmAngles.st", "Kinematics.st", "MG996R.st", "PCA9685.st"))
-CONTROLLER = REPO / "plc_project" / "Controller.st"
+CONTROLLER = _PROJECT.controller
 SOURCES = (*LIBRARY_FILES, CONTROLLER)
-DOC = REPO / "docs" / "register-map.md"
+# The page lives in the repository only; None for an installed package (main() then looks
+# for the checkout it is run from).
+_CHECKOUT = package_checkout()
+DOC = None if _CHECKOUT is None else _CHECKOUT.root / "docs" / "register-map.md"
 
 _ADDRESS = re.compile(r"^%([IQM])([XBWDL])(\d+)(?:\.(\d+))?$", re.IGNORECASE)
 _COMMENT = re.compile(r"\(\*\s*(.*?)\s*\*\)")
@@ -249,8 +254,14 @@ def render_markdown(regs: Sequence[Register]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
-    target = Path(args[0]) if args else DOC
-    target.write_text(render_markdown(derive()), encoding="utf-8")
+    try:
+        checkout = find_checkout()
+    except LocateError as exc:
+        print(f"python -m armbench.registermap: {exc}", file=sys.stderr)
+        return 2
+    sources = [*(checkout.st_dir / p.name for p in LIBRARY_FILES), checkout.controller]
+    target = Path(args[0]) if args else checkout.root / "docs" / "register-map.md"
+    target.write_text(render_markdown(derive(sources)), encoding="utf-8")
     print(f"wrote {target}")
     return 0
 

@@ -12,7 +12,8 @@ HEADER = """# Diagnostics of `armbench check`
 Generated from `sim/armbench/compiler/diagnostics.py` by
 `python -m armbench.compiler.diagdoc > docs/diagnostics.md`; do not edit by hand.
 
-Every diagnostic is one line, `file:line:col: error[CODE]: message`. The portability rules
+Every diagnostic is one line, `file:line:col: error[CODE]: message` (notes, `note[N...]`,
+do not fail the check). `armbench check` ends with a one-line summary. The portability rules
 mirror what MatIEC (the compiler inside OpenPLC) or OpenPLC's C build rejects, as measured on
 the real tools (see DESIGN.md §5.1): code that passes `armbench check` compiles there too.
 

@@ -76,6 +76,8 @@ CODES: dict[str, tuple[str, str]] = {
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
     "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
     "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
+    "N0001": ("file is not UTF-8: read as Windows-1252 (cp1252); a note, not an error",
+              "nothing if the accented characters show right; else save the file as UTF-8"),
 }
 
 
@@ -97,9 +99,15 @@ class Diagnostics:
     items: list[Diagnostic] = field(default_factory=list)
 
     def error(self, pos: SourcePos, code: str, message: str) -> None:
-        if code not in CODES:
-            raise KeyError(f"diagnostic code {code} is not in the CODES table")
-        d = Diagnostic(pos, code, message)
+        self._add(Diagnostic(pos, code, message))
+
+    def note(self, pos: SourcePos, code: str, message: str) -> None:
+        """Information that does not fail the check (e.g. the encoding a file was read in)."""
+        self._add(Diagnostic(pos, code, message, "note"))
+
+    def _add(self, d: Diagnostic) -> None:
+        if d.code not in CODES:
+            raise KeyError(f"diagnostic code {d.code} is not in the CODES table")
         if d not in self.items:
             self.items.append(d)
 

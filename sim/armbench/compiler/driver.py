@@ -15,7 +15,7 @@ from .lower import lower
 from .parse import parse_text
 from .resolve import check
 from .rules import check_names, check_rules
-from .source import SourcePos
+from .source import SourcePos, read_source
 from .symbols import CheckedProgram
 
 if TYPE_CHECKING:
@@ -39,10 +39,14 @@ def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnos
     parsed = []
     for path in expand(paths):
         try:
-            text = path.read_text(encoding="utf-8")
+            src = read_source(path)
         except (OSError, UnicodeDecodeError) as exc:
             diags.error(SourcePos(str(path), 1, 1), "E0001", f"cannot read {path}: {exc}")
             continue
+        if src.assumed:
+            diags.note(SourcePos(str(path), 1, 1), "N0001", "not valid UTF-8: read as "
+                       "Windows-1252 (cp1252), as CODESYS V2 writes it")
+        text = src.text
         pf = parse_text(str(path), text, diags)
         parsed.append(pf)
         check_rules(pf, diags)

@@ -1,7 +1,8 @@
 """Exports for real PLCs: the OpenPLC Runtime upload file and PLCopen TC6 XML.
 
 ``armbench export`` checks the sources (default ``st/*.st`` + ``plc_project/Controller.st``),
-orders them types first, and writes into ``plc_project/``:
+orders them types first, and writes into the ``--out`` folder (``armbench export
+--regenerate``: the checkout's own ``plc_project/``, from the checkout's sources):
 
 - ``openplc/arm_controller.st``: one ST file (library + program + configuration), the sources'
   text unchanged behind a generated header (:mod:`.openplc`);
@@ -15,7 +16,7 @@ checker, :mod:`.sources` orders the files, :mod:`.sttext` slices bodies and comm
 from __future__ import annotations
 
 from .generate import OPENPLC_FILE, PLCOPEN_FILE, Export, generate, load_sources
-from .sources import OUT_DIR, default_sources
+from .sources import default_sources
 
-__all__ = ["OPENPLC_FILE", "OUT_DIR", "PLCOPEN_FILE", "Export", "default_sources", "generate",
+__all__ = ["OPENPLC_FILE", "PLCOPEN_FILE", "Export", "default_sources", "generate",
            "load_sources"]

@@ -13,7 +13,9 @@ from pathlib import Path
 
 from ..compiler.diagnostics import CompileFailed
 from ..compiler.driver import analyse, expand
+from ..compiler.source import read_source
 from ..compiler.symbols import CheckedProgram
+from ..locate import Project, default_project
 from .openplc import contents_lines, render_st
 from .plcopen import build_xml
 from .sources import Source, default_sources, dependency_order, display_name
@@ -59,25 +61,35 @@ class Export:
         return bad
 
 
-def load_sources(paths: Sequence[str | Path] | None = None) -> tuple[CheckedProgram,
-                                                                     list[Source]]:
-    """Check the files (default: st/*.st + plc_project/Controller.st) and return the program
-    with the sources in dependency-safe order. Raises CompileFailed on any error."""
-    files = expand(paths) if paths else default_sources()
+def load_sources(paths: Sequence[str | Path] | None = None, project: Project | None = None
+                 ) -> tuple[CheckedProgram, list[Source]]:
+    """Check the files (default: st/*.st + plc_project/Controller.st of ``project``, itself by
+    default the files the tools use) and return the program with the sources in
+    dependency-safe order. Raises CompileFailed on any error, ValueError when the program has
+    no CONFIGURATION (an OpenPLC upload without one does nothing)."""
+    project = project or default_project()
+    files = expand(paths) if paths else default_sources(project)
     prog, diags = analyse(files)
     if prog is None:
         raise CompileFailed(diags.sorted())
+    if prog.config is None:
+        raise ValueError(
+            f"nothing to export: {', '.join(str(f) for f in files)} declare no CONFIGURATION; "
+            "the OpenPLC Runtime runs only a CONFIGURATION (CONFIGURATION Config0 / RESOURCE "
+            "Res0 ON PLC / TASK ... / PROGRAM inst WITH task : YourProgram), see "
+            "plc_project/Controller.st")
     by_file = {u.pos.file: u for u in prog.units}
     sources = []
     for f in files:
         unit = by_file[str(f)]
-        sources.append(Source(f, display_name(f), f.read_text(encoding="utf-8"), unit))
+        sources.append(Source(f, display_name(f, project), read_source(f).text, unit))
     order = dependency_order([s.unit for s in sources])
     return prog, [sources[i] for i in order]
 
 
-def generate(paths: Sequence[str | Path] | None = None) -> Export:
-    prog, sources = load_sources(paths)
+def generate(paths: Sequence[str | Path] | None = None,
+             project: Project | None = None) -> Export:
+    prog, sources = load_sources(paths, project)
     version = _version()
     st = render_st(prog, sources, file_name=OPENPLC_FILE.name, version=version)
     comment = "\n".join([

@@ -17,24 +17,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..compiler import ast as A
-
-REPO = Path(__file__).resolve().parents[3]
-LIBRARY_DIR = REPO / "st"
-CONTROLLER = REPO / "plc_project" / "Controller.st"
-OUT_DIR = REPO / "plc_project"
+from ..locate import Project, default_project
 
 
-def default_sources() -> list[Path]:
-    """st/*.st (sorted) then plc_project/Controller.st."""
-    return [*sorted(LIBRARY_DIR.glob("*.st")), CONTROLLER]
+def default_sources(project: Project | None = None) -> list[Path]:
+    """st/*.st (sorted) then plc_project/Controller.st, of ``project`` (default: the files
+    the tools use, :func:`armbench.locate.default_project`)."""
+    return (project or default_project()).sources()
 
 
-def display_name(path: Path) -> str:
-    """The path as written in generated files: repo-relative when inside the repo."""
-    try:
-        return path.resolve().relative_to(REPO).as_posix()
-    except ValueError:
-        return path.as_posix()
+def display_name(path: Path, project: Project | None = None) -> str:
+    """The path as written in generated files: ``st/...`` / ``plc_project/...`` when it is
+    one of the project's files (installed or in a checkout alike), else as given."""
+    return (project or default_project()).relative(path) or path.as_posix()
 
 
 @dataclass(frozen=True)

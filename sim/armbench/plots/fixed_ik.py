@@ -22,12 +22,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from armbench.locate import LocateError, find_checkout
 from armbench.plant import arm
 
-REPO = Path(__file__).resolve().parents[3]
-ST = REPO / "st"
-SOURCES = [ST / "ArmAngles.st", ST / "Kinematics.st", ST / "KinematicsFixed.st",
-           ST / "KinematicsFixedTables.st"]
+SOURCES = ["ArmAngles.st", "Kinematics.st", "KinematicsFixed.st", "KinematicsFixedTables.st"]
 GEO_FIXED = {"A1Mm100": 10000, "A2Mm100": 2000, "A3Mm100": 12000, "A4Mm100": 13000}
 
 
@@ -87,8 +85,16 @@ def random_errors(module: Any, count: int = 10_000, seed: int = 1
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m armbench.plots.fixed_ik")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "figures")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="default: docs/figures/ of the checkout")
+    parser.add_argument("--repo", type=Path, default=None,
+                        help="the checkout (default: found from the current directory)")
     args = parser.parse_args(argv)
+    try:
+        checkout = find_checkout(args.repo)
+    except LocateError as exc:
+        parser.error(str(exc))
+    args.out = args.out or checkout.root / "docs" / "figures"
 
     import matplotlib
 
@@ -97,7 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from armbench.compiler import compile_files
 
-    module = compile_files(SOURCES)
+    module = compile_files([checkout.st_dir / name for name in SOURCES])
     args.out.mkdir(parents=True, exist_ok=True)
 
     xs, zs, err = plane_errors(module)

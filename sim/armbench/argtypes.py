@@ -1,0 +1,64 @@
+"""argparse value types shared by the command line, the demo and the pytest plugin: a bad
+value is a one-line usage error naming the option, never a traceback later on."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def port(text: str) -> int:
+    """A TCP port, 0..65535 (0: any free port)."""
+    value = _int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"port must be 0..65535, got {value}")
+    return value
+
+
+def count(text: str) -> int:
+    """A count that may be zero: 0, 1, 2, ..."""
+    return _at_least(_int(text), 0)
+
+
+def positive_count(text: str) -> int:
+    """A count of at least one."""
+    return _at_least(_int(text), 1)
+
+
+def _at_least(value: int, low: int) -> int:
+    if value < low:
+        raise argparse.ArgumentTypeError(f"must be {low} or more, got {value}")
+    return value
+
+
+def seconds(text: str) -> float:
+    """A finite duration, 0 or more."""
+    value = _float(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return value
+
+
+def positive_length(text: str) -> float:
+    """A finite length above zero."""
+    value = _float(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
+    return value
+
+
+def _int(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+
+
+def _float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
