@@ -92,5 +92,5 @@ def test_bad_limits_are_one_line_errors(prog: Path, options: list[str]) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "armbench.cli", "serve", str(prog), "--port", "0", *options],
         capture_output=True, text=True, timeout=60)
-    assert proc.returncode != 0
-    assert len(proc.stderr.splitlines()) == 1 and proc.stderr.startswith("armbench: error:")
+    assert proc.returncode == 2  # a usage error
+    assert len(proc.stderr.splitlines()) == 1 and proc.stderr.startswith("armbench serve: error:")

@@ -105,8 +105,9 @@ def test_rewriting_only_seq_runs_nothing(plc: ArmControllerClient) -> None:
 
 
 def test_a_burst_of_commands_is_never_silently_skipped(plc: ArmControllerClient) -> None:
-    """100 MoveJoints written back to back without waiting: every one runs, or the client is
-    told with BadSequence that some did not (the PLC sees only the last block of a scan)."""
+    """100 MoveJoints written back to back without waiting: either every one ran, or the
+    last answer is BadSequence (the PLC sees only the last block of each scan; after the first
+    gap it runs nothing until the client says Hello), so the client always knows."""
     plc.move_joints(0.0, 70.0, 65.0)
     assert plc.mailbox is not None
     seq = _seq(plc)
@@ -122,11 +123,16 @@ def test_a_burst_of_commands_is_never_silently_skipped(plc: ArmControllerClient)
     assert a.ack_seq == seq
     ran = st.commands_answered - answered
     if a.result == ERR_OK:
-        assert ran == 100, "the last one ran in sequence, so every one before it did"
+        assert ran == 100, "an OK last answer means no block was skipped"
+        assert st.joints_deg == poses[-1]
     else:
         assert a.result == ERR_BAD_SEQUENCE
         assert ran < 100
-    assert st.joints_deg in poses  # whatever ran was one of the commanded poses
+        assert st.joints_deg in [(0.0, 70.0, 65.0), *poses[: ran]]  # none after the gap ran
+        # the mailbox refuses moves until the client re-synchronises with Hello
+        assert plc.move_joints(1.0, 70.0, 65.0).error_id == ERR_BAD_SEQUENCE
+        assert plc.hello().error_id == ERR_OK
+    assert plc.move_joints(2.0, 70.0, 65.0).joints_deg == (2.0, 70.0, 65.0)
 
 
 def test_a_foreign_block_in_an_owned_mailbox_is_not_run(plc: ArmControllerClient,
