@@ -380,8 +380,12 @@ class ArmControllerClient:
         )
 
     def scan_count(self) -> int:
+        """The PLC's ScanCount (a reconnection is tried for ``timeout_s`` if the connection
+        is broken or not served: also a way to make sure the PLC serves this connection)."""
         reg = controller_map()["SCANCOUNT"]
-        return mm.words_to_udint(self.plc.read_holding_registers(reg.address, 2))
+        return mm.words_to_udint(self._io(
+            lambda: self.plc.read_holding_registers(reg.address, 2),
+            time.monotonic() + self.timeout_s))
 
     def wait_scans(self, scans: int, timeout_s: float = 5.0) -> None:
         """Return after the PLC has run ``scans`` more scans (raises HandshakeTimeout when it
@@ -442,9 +446,11 @@ class ArmControllerClient:
             self._reconnect()
         return p
 
-    def wait(self, p: Pending) -> int:
+    def wait(self, p: Pending, *, judge_lease: bool = True) -> int:
         """Wait until the PLC answers ``p``; returns its result code. Raises
-        :class:`MailboxLost` when another session took the mailbox before the command ran."""
+        :class:`MailboxLost` when another session took the mailbox before the command ran,
+        :class:`HandshakeLost` when that cannot be told apart from a command that ran (with
+        ``judge_lease=False``, for commands that change nothing, it waits on instead)."""
         deadline = p.sent_at + self.timeout_s
         last_look = p.sent_at
         longest_gap = 0.0
@@ -462,7 +468,7 @@ class ArmControllerClient:
             # Not answered (yet). A command answered, its mailbox then freed by the lease and
             # reused by another client, looks the same: only a client that looked at the
             # answer more often than the lease lasts can tell the two apart.
-            if longest_gap > self._lease_s:
+            if judge_lease and longest_gap > self._lease_s:
                 raise HandshakeLost(
                     f"mailbox {p.mailbox}: {longest_gap:.1f} s without a look at the answer "
                     f"(the lease is about {self._lease_s:.1f} s); seq {p.seq} (code {p.code}) "
@@ -503,9 +509,11 @@ class ArmControllerClient:
             random.shuffle(free)  # clients starting together rarely pick the same one
             for k in free:
                 try:
-                    result = self.wait(self._send(k, CMD_HELLO, (0, 0), ()))
-                except (MailboxLost, HandshakeLost):
-                    continue  # Hello runs nothing: whatever happened, try the next one
+                    # A slow answer is still an answer: giving up on it would leave the PLC
+                    # holding a mailbox for this session that the client does not know about.
+                    result = self.wait(self._send(k, CMD_HELLO, (0, 0), ()), judge_lease=False)
+                except MailboxLost:
+                    continue  # another client claimed it first: try the next one
                 if result == ERR_OK:
                     self.mailbox = k
                     self._measure_lease(t0_end, s0, deadline)
@@ -621,13 +629,16 @@ class ArmControllerClient:
             raise ValueError(f"a batch holds 1..{self.batch_max} points, got {n}")
         values = [c for p in points for c in p]
         words = self._targets.encode(values + [0.0] * (3 * self.batch_max - len(values)))
-        self._write(self._targets.address, words[: 6 * n])  # 3 REALs = 6 words per point
+        # 3 REALs = 6 words per point; writing them again after a broken connection is harmless
+        self._io(lambda: self._write(self._targets.address, words[: 6 * n]),
+                 time.monotonic() + self.timeout_s)
         return self._send(self.open(), CMD_SOLVE_BATCH, (int(elbow_down), n), ())
 
     def batch_results(self, n: int) -> list[BatchPoint]:
         """The first ``n`` SolveBatch results (read after the acknowledge)."""
         per = len(_RESULT_PREFIXES)
-        words = self._read(self._results.address, 2 * per * n)
+        words = self._io(lambda: self._read(self._results.address, 2 * per * n),
+                         time.monotonic() + self.timeout_s)
         v = self._results.decode(words + [0] * (self._results.length - len(words)))
         return [BatchPoint((v[i], v[i + 1], v[i + 2]), (v[i + 3], v[i + 4], v[i + 5]),
                            int(v[i + 6])) for i in range(0, per * n, per)]

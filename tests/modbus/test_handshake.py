@@ -44,6 +44,7 @@ SCANS = 3
 def second(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
     """A second client on its own connection, with its own session and mailbox."""
     with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as ctl:
+        ctl.scan_count()  # served before the test goes on (see the plc fixture)
         yield ctl
 
 

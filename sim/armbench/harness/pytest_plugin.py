@@ -88,4 +88,7 @@ def plc_address(_real_plc: tuple[str, int] | None) -> Iterator[tuple[str, int]]:
 def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
     host, port = plc_address
     with PlcClient(host, port) as client, ArmControllerClient(client) as ctl:
+        # One request before the test starts: a PLC that takes new connections one at a time
+        # (OpenPLC's accept loop) has then taken this one before the test opens another.
+        ctl.scan_count()
         yield ctl
