@@ -461,18 +461,23 @@ class ArmControllerClient:
             now = time.monotonic()
             longest_gap = max(longest_gap, now - last_look)
             last_look = now
-            if a.ack_seq == p.seq and a.ack_check == p.check and (
-                    a.owner == self.session or p.code == CMD_CLOSE):
+            if a.ack_seq == p.seq and a.ack_check == p.check and a.owner in (0, self.session):
+                # Owner 0: answered, and since then the mailbox was closed (Close) or its
+                # lease ran out; the answer stays until another block is answered there.
+                if a.owner == 0 and p.code != CMD_CLOSE and self.mailbox == p.mailbox:
+                    self.mailbox = None
                 self.answered += 1
                 return a.result
-            # Not answered (yet). A command answered, its mailbox then freed by the lease and
-            # reused by another client, looks the same: only a client that looked at the
-            # answer more often than the lease lasts can tell the two apart.
-            if judge_lease and longest_gap > self._lease_s:
+            if a.owner != self.session and judge_lease and longest_gap > self._lease_s:
+                # Not answered, and the mailbox is not ours (any more): a command answered,
+                # its mailbox then freed by the lease and used by another client looks the
+                # same as one never taken. Only a client that looked more often than the
+                # lease lasts can tell them apart. (Owner still ours means no lease ran out.)
                 raise HandshakeLost(
                     f"mailbox {p.mailbox}: {longest_gap:.1f} s without a look at the answer "
-                    f"(the lease is about {self._lease_s:.1f} s); seq {p.seq} (code {p.code}) "
-                    "may or may not have run: read the PLC's state before going on")
+                    f"(the lease is about {self._lease_s:.1f} s) and the mailbox is no longer "
+                    f"this client's; seq {p.seq} (code {p.code}) may or may not have run: "
+                    "read the PLC's state before going on")
             if a.owner not in (0, self.session):
                 raise MailboxLost(f"mailbox {p.mailbox} was taken by session {a.owner} before "
                                   f"the PLC took seq {p.seq}")

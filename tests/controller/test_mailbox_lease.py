@@ -96,3 +96,20 @@ def test_a_client_silent_past_the_lease_is_told_it_cannot_know(
         assert b.answer(k).owner == b.session
         with pytest.raises(HandshakeLost, match="may or may not have run"):
             a.wait(pending)
+
+
+def test_an_answer_outlives_the_lease_and_a_stalled_owner_is_not_misled(
+        fast_plc: tuple[str, int]) -> None:
+    """A stalled connection (OpenPLC's accept loop can leave one unserved for seconds) is
+    harmless while the mailbox is still the client's, and an answer that arrived before the
+    lease ran out still counts afterwards: only a mailbox taken over is undecidable."""
+    with PlcClient(*fast_plc) as modbus:
+        a = ArmControllerClient(modbus)
+        a.hello()
+        k = a.mailbox
+        pending = a.submit(CMD_MOVE_JOINTS, args=(4.0, 70.0, 65.0))
+        a.wait_scans(LEASE_SCANS + 20, timeout_s=20.0)  # answered, then freed by the lease
+        assert a.answer(k).owner == 0
+        assert a.wait(pending) == ERR_OK  # the answer is still there, and it is this one
+        assert a.mailbox is None  # the client knows the mailbox is gone
+        assert a.move_joints(5.0, 70.0, 65.0).joints_deg == (5.0, 70.0, 65.0)
