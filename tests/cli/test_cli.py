@@ -14,40 +14,11 @@ import pytest
 
 from armbench.cli import main
 
-PROGRAM = """
-PROGRAM Main
-VAR
-  n : DINT;
-  r : REAL := 0.5;
-END_VAR
-VAR
-  out AT %QW2 : INT;
-  val AT %MD0 : REAL;
-END_VAR
-  n := n + 1;
-  out := DINT_TO_INT(n);
-  val := r * DINT_TO_REAL(n);
-END_PROGRAM
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH task0 : Main;
-  END_RESOURCE
-END_CONFIGURATION
-"""
-
-
-@pytest.fixture()
-def prog(tmp_path: Path) -> Path:
-    p = tmp_path / "prog.st"
-    p.write_text(PROGRAM)
-    return p
-
 
 def test_check_ok_and_error(prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", str(prog)]) == 0
     bad = tmp_path / "bad.st"
-    bad.write_text(PROGRAM.replace("r * DINT_TO_REAL(n)", "r * n"))
+    bad.write_text(prog.read_text().replace("r * DINT_TO_REAL(n)", "r * n"))
     assert main(["check", str(bad)]) == 1
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1 and out[0].startswith(f"{bad}:13:")
@@ -69,7 +40,7 @@ def test_run_dump_is_json(prog: Path, capsys: pytest.CaptureFixture[str]) -> Non
 def test_run_reports_fault_with_position(prog: Path, tmp_path: Path,
                                          capsys: pytest.CaptureFixture[str]) -> None:
     src = tmp_path / "div.st"
-    src.write_text(PROGRAM.replace("n := n + 1;",
+    src.write_text(prog.read_text().replace("n := n + 1;",
                                    "n := n + 1;\n  IF n >= 3 THEN n := 10 / (n - n); END_IF;"))
     assert main(["run", str(src), "--cycles", "5"]) == 1
     # the position is the division's: line 12, column of `10 / ...`

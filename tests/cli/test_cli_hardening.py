@@ -16,19 +16,6 @@ CONTROLLER = REPO / "plc_project" / "Controller.st"
 EXPORTS = [REPO / "plc_project" / "openplc" / "arm_controller.st",
            REPO / "plc_project" / "plcopen" / "arm_controller.xml"]
 
-PROGRAM = """PROGRAM Main
-VAR
-  n AT %QW0 : INT;
-END_VAR
-  n := n + 1;
-END_PROGRAM
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH task0 : Main;
-  END_RESOURCE
-END_CONFIGURATION
-"""
 NO_CONFIG = """FUNCTION Twice : REAL
   VAR_INPUT X : REAL; END_VAR
   Twice := X * 2.0;
@@ -45,13 +32,6 @@ def pous_in(paths: list[Path]) -> int:
         text = re.sub(r"\(\*.*?\*\)", "", p.read_text(encoding="utf-8"), flags=re.DOTALL)
         total += len(_POU.findall(text))
     return total
-
-
-@pytest.fixture()
-def prog(tmp_path: Path) -> Path:
-    p = tmp_path / "prog.st"
-    p.write_text(PROGRAM)
-    return p
 
 
 @pytest.mark.parametrize("argv, option", [
@@ -97,7 +77,7 @@ def test_check_ends_with_a_summary(prog: Path, capsys: pytest.CaptureFixture[str
 
 
 def test_check_summary_counts_errors(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    prog.write_text(PROGRAM.replace("n := n + 1;", "n := n + 1.5;"))
+    prog.write_text(prog.read_text().replace("n := n + 1;", "n := n + 1.5;"))
     assert main(["check", "--no-library", str(prog)]) == 1
     out, err = capsys.readouterr()
     assert len(out.strip().splitlines()) == 1
@@ -149,10 +129,10 @@ def _committed() -> list[bytes]:
 
 
 def test_export_never_touches_plc_project_unless_regenerating(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     before = _committed()
     user = tmp_path / "user.st"
-    user.write_text(PROGRAM)
+    user.write_text(prog.read_text())
     assert main(["export", str(user)]) == 2
     assert "--out" in capsys.readouterr().err
     assert main(["export", str(user), "--out", str(tmp_path / "out")]) == 0

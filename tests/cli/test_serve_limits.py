@@ -12,28 +12,6 @@ from pathlib import Path
 
 import pytest
 
-PROGRAM = """
-PROGRAM Main
-VAR
-  n : DINT;
-END_VAR
-  n := n + 1;
-END_PROGRAM
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM inst0 WITH task0 : Main;
-  END_RESOURCE
-END_CONFIGURATION
-"""
-
-
-@pytest.fixture()
-def prog(tmp_path: Path) -> Path:
-    p = tmp_path / "prog.st"
-    p.write_text(PROGRAM)
-    return p
-
 
 def _free_port() -> int:
     with socket.socket() as s:
