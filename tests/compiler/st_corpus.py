@@ -214,7 +214,7 @@ def instance_types(mod_or_prog: Any, instance: str = INSTANCE) -> dict[str, Any]
 
 # ------------------------------------------------------------------ the real MatIEC
 MATIEC_HELP = ("no real iec2c (none on PATH): set IEC2C=/path/to/iec2c or "
-               "MATIEC_CHECK=/path/to/check-st.sh (e.g. /opt/matiec-check/check-st.sh) to "
+               "MATIEC_CHECK=/path/to/check-st.sh (e.g. /opt/realplc/check-st.sh) to "
                "cross-check")
 
 

@@ -54,8 +54,10 @@ def _case_long(n: int) -> str:
     return _main("CASE x OF\n" + "".join(f"{k}: x := {k};\n" for k in range(n)) + "END_CASE;")
 
 
-def _for(n: int) -> str:
-    return _main(_wrap(n, "FOR i := 1 TO 2 DO\n", "END_FOR;\n", "x := x + 1;\n"))
+def _for(n: int) -> str:  # one control variable per loop: MatIEC rejects nested FORs sharing one
+    body = "".join(f"FOR i{k} := 1 TO 2 DO\n" for k in range(n)) + "x := x + 1;\n" + \
+        "END_FOR;\n" * n
+    return _main(body, decls="".join(f"  i{k} : INT;\n" for k in range(n)))
 
 
 def _while(n: int) -> str:
@@ -78,8 +80,8 @@ def _neg(n: int) -> str:
     return _main("x := " + _wrap(n, "-(", ")", "x") + ";")
 
 
-def _not(n: int) -> str:
-    return _main("b := " + "NOT " * n + "b;")
+def _not(n: int) -> str:  # NOT NOT b is a syntax error in MatIEC: NOT (NOT (b))
+    return _main("b := " + _wrap(n, "NOT (", ")", "b") + ";")
 
 
 def _sum(n: int) -> str:
@@ -124,21 +126,22 @@ def _index(n: int) -> str:
 
 
 def _struct_fields(n: int) -> str:
-    types = "TYPE\n" + "".join(f"  Lvl{k} : STRUCT\n    f : Lvl{k + 1};\n  END_STRUCT;\n"
-                               for k in range(n)) + \
-        f"  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\nEND_TYPE\n"
+    # innermost first: MatIEC rejects a TYPE naming a later type (E0212)
+    types = f"TYPE\n  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\n" + "".join(
+        f"  Lvl{k} : STRUCT\n    f : Lvl{k + 1};\n  END_STRUCT;\n"
+        for k in range(n - 1, -1, -1)) + "END_TYPE\n"
     return _main("x := s" + ".f" * n + ".v;", decls="  s : Lvl0;\n", before=types)
 
 
 def _struct_arrays(n: int) -> str:
-    types = "TYPE\n" + "".join(f"  Lvl{k} : STRUCT\n    f : ARRAY[0..1] OF Lvl{k + 1};\n"
-                               "  END_STRUCT;\n" for k in range(n)) + \
-        f"  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\nEND_TYPE\n"
+    types = f"TYPE\n  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\n" + "".join(
+        f"  Lvl{k} : STRUCT\n    f : ARRAY[0..1] OF Lvl{k + 1};\n  END_STRUCT;\n"
+        for k in range(n - 1, -1, -1)) + "END_TYPE\n"
     return _main("x := s" + ".f[1]" * n + ".v;", decls="  s : Lvl0;\n", before=types)
 
 
 def _fb_chain(n: int) -> str:
-    fbs = "".join(f"FUNCTION_BLOCK Fb{k}\nVAR\n  inner : Fb{k + 1};\nEND_VAR\n"
+    fbs = "".join(f"FUNCTION_BLOCK Fb{k}\nVAR\n  inner : Fb{k + 1};\nEND_VAR\n  inner();\n"
                   "END_FUNCTION_BLOCK\n" for k in range(n))
     fbs += (f"FUNCTION_BLOCK Fb{n}\nVAR_OUTPUT\n  v : DINT;\nEND_VAR\n  v := 1;\n"
             "END_FUNCTION_BLOCK\n")
@@ -153,8 +156,8 @@ def _function_chain(n: int) -> str:  # F0 calls F1 calls ... F(n): deep call gra
 
 
 def _alias_chain(n: int) -> str:
-    types = "TYPE\n" + "".join(f"  T{k} : T{k + 1};\n" for k in range(n)) + \
-        f"  T{n} : DINT;\nEND_TYPE\n"
+    types = f"TYPE\n  T{n} : DINT;\n" + "".join(f"  T{k} : T{k + 1};\n"
+                                              for k in range(n - 1, -1, -1)) + "END_TYPE\n"
     return _main("t := 1;\nx := t;", decls="  t : T0;\n", before=types)
 
 
@@ -180,8 +183,13 @@ CONSTRUCTS: dict[str, Callable[[int], str]] = {
 # Long but flat: every size must be accepted, never rejected as too deep.
 FLAT = {"elsif", "case_long", "sum", "mixed_chain", "const_sum", "real_sum", "function_chain",
         "alias_chain", "dims"}
-# Levels of nesting one step of a construct adds, where it is not one.
+# Levels of nesting one step of a construct adds, where it is not one (the bench's own limit).
 LEVELS_PER_STEP = {"paren_sum": 2, "conversions": 2, "struct_arrays": 2}
+# The largest n for which OpenPLC's iec2c accepts program(construct, n), measured by binary
+# search (n + 1 is a syntax error: its bison stack holds 200 entries). The checker must agree.
+MATIEC_MAX = {"if": 63, "case": 38, "for": 26, "while": 63, "repeat": 189, "paren": 189,
+              "paren_sum": 63, "neg": 94, "not": 94, "calls": 94, "std_calls": 94,
+              "max_calls": 47, "conversions": 47, "index": 94}
 
 
 def program(construct: str, n: int) -> str:
@@ -196,6 +204,12 @@ _STMT_WRAPS = [("IF b THEN\n", "END_IF;\n"), ("WHILE b DO\n", "END_WHILE;\n"),
                ("REPEAT\n", "UNTIL b END_REPEAT;\n"), ("IF b THEN x := 0; ELSE\n", "END_IF;\n")]
 
 
+# MatIEC stack entries one wrap adds at most / at least (FOR 7 ... REPEAT 1; a call with a
+# second argument 4 ... parentheses 1), measured (docs/diagnostics.md)
+STMT_WRAP_COST = (1, 7)
+EXPR_WRAP_COST = (1, 4)
+
+
 def mixed(rng: random.Random, stmt_depth: int, expr_depth: int) -> str:
     """Random statements around a random expression, nested stmt_depth and expr_depth deep."""
     expr = "x"
@@ -203,7 +217,8 @@ def mixed(rng: random.Random, stmt_depth: int, expr_depth: int) -> str:
         open_, close = rng.choice(_EXPR_WRAPS)
         expr = open_ + expr + close
     body = f"x := {expr};\n"
-    for _ in range(stmt_depth):
+    for k in range(stmt_depth):
         open_, close = rng.choice(_STMT_WRAPS)
-        body = open_ + body + close
-    return _main(body, before=_INC)
+        body = open_.replace("FOR i ", f"FOR i{k} ") + body + close  # MatIEC: one per loop
+    loops = "".join(f"  i{k} : INT;\n" for k in range(stmt_depth))
+    return _main(body, decls=loops, before=_INC)

@@ -15,7 +15,7 @@ from typing import TypeVar
 
 import numpy as np
 import pytest
-from st_deep import CONFIG, program
+from st_deep import CONFIG, MATIEC_MAX, program
 
 from armbench.compiler import ast as A
 from armbench.compiler import check_files, compile_files
@@ -49,17 +49,18 @@ def codes(path: Path) -> list[str]:
 def test_deep_nesting_is_one_diagnostic(tmp_path: Path, construct: str, n: int) -> None:
     ds = check_files([write(tmp_path, construct, program(construct, n))])
     assert [d.code for d in ds] == ["E0108"], [d.render() for d in ds]
-    assert re.fullmatch(rf"{construct}\.st:\d+:\d+: error\[E0108\]: nesting deeper than "
-                        rf"{NESTING_LIMIT} levels .*", ds[0].render().rsplit("/", 1)[-1])
+    assert re.fullmatch(rf"{construct}\.st:\d+:\d+: error\[E0108\]: nesting too deep for "
+                        r"MatIEC \(\d+ nested .*", ds[0].render().rsplit("/", 1)[-1])
 
 
 def test_e0108_points_at_the_first_level_too_many(tmp_path: Path) -> None:
     # program(): line 1 is empty, PROGRAM .. END_VAR take lines 2..8, the first IF is line 9
-    ds = check_files([write(tmp_path, "ifs", program("if", NESTING_LIMIT + 5))])
-    assert [(d.pos.line, d.pos.col) for d in ds] == [(9 + NESTING_LIMIT, 1)]
-    ds = check_files([write(tmp_path, "parens", program("paren", NESTING_LIMIT + 5))])
+    ds = check_files([write(tmp_path, "ifs", program("if", MATIEC_MAX["if"] + 5))])
+    assert [(d.pos.line, d.pos.col) for d in ds] == [(9 + MATIEC_MAX["if"], 1)]
+    ds = check_files([write(tmp_path, "parens", program("paren", MATIEC_MAX["paren"] + 5))])
     line = program("paren", 1).splitlines().index("x := (x);") + 1
-    assert [(d.pos.line, d.pos.col) for d in ds] == [(line, len("x := ") + NESTING_LIMIT + 1)]
+    assert [(d.pos.line, d.pos.col) for d in ds] == [(line, len("x := ") + MATIEC_MAX["paren"]
+                                                      + 1)]
 
 
 @pytest.mark.parametrize("n", [329, 5000])
@@ -123,10 +124,7 @@ def test_20000_term_sum_builds_and_runs(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ at the limit
-AT_LIMIT = [("if", NESTING_LIMIT), ("case", NESTING_LIMIT), ("while", NESTING_LIMIT),
-            ("paren", NESTING_LIMIT), ("not", NESTING_LIMIT), ("calls", NESTING_LIMIT),
-            ("std_calls", NESTING_LIMIT), ("max_calls", NESTING_LIMIT),
-            ("index", NESTING_LIMIT), ("conversions", NESTING_LIMIT // 2),
+AT_LIMIT = [*sorted(MATIEC_MAX.items()),
             ("struct_fields", NESTING_LIMIT - 1), ("fb_chain", NESTING_LIMIT - 1)]
 
 
@@ -148,12 +146,12 @@ def test_nesting_at_the_limit_passes_from_a_deep_caller(tmp_path: Path, construc
 
 
 def test_build_and_read_at_the_limit(tmp_path: Path) -> None:
-    calls = write(tmp_path, "calls", program("calls", NESTING_LIMIT))
+    calls = write(tmp_path, "calls", program("calls", MATIEC_MAX["calls"]))
     fbs = write(tmp_path, "fbs", program("fb_chain", NESTING_LIMIT - 1))
 
     def run() -> tuple[int, int]:
         main = compile_files([calls]).new_program("Main")
-        main()  # x starts at 0 and goes through Inc() NESTING_LIMIT times
+        main()  # x starts at 0 and goes through Inc() MATIEC_MAX["calls"] times
         fb = compile_files([fbs]).new_program("Main")
         fb()
         depth, v = 0, fb.get("f")
@@ -161,7 +159,7 @@ def test_build_and_read_at_the_limit(tmp_path: Path) -> None:
             v, depth = v["inner"], depth + 1
         return int(main.get("x")), depth
 
-    assert deep_caller(CALLER_FRAMES, run) == (NESTING_LIMIT, NESTING_LIMIT - 1)
+    assert deep_caller(CALLER_FRAMES, run) == (MATIEC_MAX["calls"], NESTING_LIMIT - 1)
 
 
 # ------------------------------------------------------------------ containment
@@ -338,3 +336,69 @@ def test_long_constant_initial_value_builds(tmp_path: Path, n: int) -> None:
     inst = compile_files([path]).new_program("Main")
     inst()
     assert inst.get("x") == n
+
+
+# ------------------------------------------------------------------ against the real MatIEC
+@pytest.mark.parametrize("construct", sorted(MATIEC_MAX))
+def test_matiec_limit_is_the_checkers(matiec, construct: str,  # type: ignore[no-untyped-def]
+                                      tmp_path: Path) -> None:
+    """MATIEC_MAX is what iec2c accepts: its maximum passes there, one more level does not."""
+    top = MATIEC_MAX[construct]
+    at = write(tmp_path, f"{construct}_{top}", program(construct, top))
+    over = write(tmp_path, f"{construct}_{top + 1}", program(construct, top + 1))
+    assert codes(at) == [] and codes(over) == ["E0108"]
+    accepted, _, out = matiec.verdict(at)
+    assert accepted, out
+    accepted, _, out = matiec.verdict(over)
+    assert not accepted, out
+
+
+_LATER_TYPE = {  # TYPE declarations naming a later type: MatIEC rejects each of them
+    "struct_field": "A : STRUCT n : B; END_STRUCT;\n  B : STRUCT v : DINT; END_STRUCT;",
+    "array_element": "A : ARRAY[0..1] OF B;\n  B : STRUCT v : DINT; END_STRUCT;",
+    "field_array": "A : STRUCT n : ARRAY[0..1] OF B; END_STRUCT;\n  B : DINT;",
+    "alias": "A : B;\n  B : DINT;",
+    "field_enum": "A : STRUCT n : B; END_STRUCT;\n  B : (Red, Green);",
+    "field_subrange": "A : STRUCT n : B; END_STRUCT;\n  B : INT (0..10);",
+}
+_LATER_POU = {  # POUs using later types, FBs and FUNCTIONs: MatIEC accepts each of them
+    "var_of_later_struct": ("PROGRAM", "TYPE\n  Rec : STRUCT v : DINT; END_STRUCT;\nEND_TYPE\n"),
+    "fb_of_later_fb": ("FUNCTION_BLOCK Cnt\nVAR_OUTPUT\n  v : DINT;\nEND_VAR\n  v := v + 1;\n"
+                       "END_FUNCTION_BLOCK\n", ""),
+    "call_of_later_function": ("FUNCTION Inc : DINT\nVAR_INPUT\n  a : DINT;\nEND_VAR\n"
+                               "  Inc := a + 1;\nEND_FUNCTION\n", ""),
+}
+
+
+@pytest.mark.parametrize("name", sorted(_LATER_TYPE))
+def test_type_naming_a_later_type_is_e0212(tmp_path: Path, name: str) -> None:
+    text = f"TYPE\n  {_LATER_TYPE[name]}\nEND_TYPE\n" + _st("", "x : DINT;\n  a : A;")
+    ds = check_files([write(tmp_path, name, text)])
+    assert [(d.code, d.pos.line) for d in ds] == [("E0212", 2)], [d.render() for d in ds]
+    assert "uses B, which is declared later (line 3)" in ds[0].message
+
+
+def _later_pou(name: str) -> str:
+    pou, after = _LATER_POU[name]
+    if name == "var_of_later_struct":
+        return _st("", "x : DINT;\n  s : Rec;", "x := s.v;").replace("\nCONFIGURATION",
+                                                                    after + "CONFIGURATION")
+    body = "f();\n  x := f.v;" if name == "fb_of_later_fb" else "x := Inc(x);"
+    decls = "x : DINT;\n  f : Cnt;" if name == "fb_of_later_fb" else "x : DINT;"
+    return _st("", decls, body).replace("\nCONFIGURATION", pou + "CONFIGURATION")
+
+
+@pytest.mark.parametrize("name", sorted(_LATER_POU))
+def test_pou_using_later_declarations_passes(tmp_path: Path, name: str) -> None:
+    assert codes(write(tmp_path, name, _later_pou(name))) == []
+
+
+@pytest.mark.parametrize("name", sorted(_LATER_TYPE) + sorted(_LATER_POU))
+def test_matiec_agrees_on_declaration_order(matiec, name: str,  # type: ignore[no-untyped-def]
+                                            tmp_path: Path) -> None:
+    if name in _LATER_TYPE:
+        text = f"TYPE\n  {_LATER_TYPE[name]}\nEND_TYPE\n" + _st("", "x : DINT;\n  a : A;")
+    else:
+        text = _later_pou(name)
+    accepted, _, out = matiec.verdict(write(tmp_path, name, text))
+    assert accepted == (name in _LATER_POU), out

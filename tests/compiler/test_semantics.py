@@ -3,7 +3,7 @@
 Each corpus file is a PROGRAM run by `CONFIGURATION Config0 / RESOURCE Res0 / TASK` as instance
 `instance0`; its expected values are `(* CHECK: ... *)` comments and `(* SCANS: N *)` (see
 st_corpus.py for the syntax). The expected values are what the real MatIEC of OpenPLC v3
-computes (derived with /opt/matiec-check/run-st.sh), never what our compiler printed.
+computes (derived with /opt/realplc/run-st.sh), never what our compiler printed.
 
 test_semantics       compiles with armbench's compiler, runs the first task N times at times
                      k * INTERVAL (k = 0..N-1) and compares every CHECK with the instance's vars.
@@ -12,7 +12,7 @@ test_matiec_values   must accept every file, and the program run the OpenPLC way
                      every CHECK too, so the corpus stays honest.
 
 Environment for the MatIEC cross-check (skipped when neither is set):
-  MATIEC_CHECK=/opt/matiec-check/check-st.sh   a check script (verdict by exit status 0); a
+  MATIEC_CHECK=/opt/realplc/check-st.sh   a check script (verdict by exit status 0); a
                                                 run-st.sh beside it (or MATIEC_RUN=...) runs
                                                 programs and prints variables for the values test
   IEC2C=/path/to/iec2c                          bare iec2c (verdict of iec2c alone, no values);
@@ -96,7 +96,7 @@ def test_matiec_accepts(matiec, path: Path) -> None:  # type: ignore[no-untyped-
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES])
 def test_matiec_values(matiec, path: Path) -> None:  # type: ignore[no-untyped-def]
     if matiec.run_script is None:
-        pytest.skip("MatIEC values need run-st.sh: set MATIEC_CHECK=/opt/matiec-check/check-st.sh")
+        pytest.skip("MatIEC values need run-st.sh: set MATIEC_CHECK=/opt/realplc/check-st.sh")
     from armbench.compiler.driver import analyse
 
     scans, checks = parse_checks(path)

@@ -78,6 +78,34 @@ def check_containment(holders: dict[str, Holder], diags: Diagnostics,
     return bad, order
 
 
+def check_declaration_order(decls: dict[str, A.TypeDecl], skip: set[str],
+                            diags: Diagnostics) -> None:
+    """E0212: MatIEC resolves the types named inside a TYPE declaration (STRUCT fields, ARRAY
+    elements, aliases) while it parses, even with -p, so each must be declared earlier in the
+    file (measured: "invalid specification in structure element declaration"). POUs may use
+    later types, FBs and FUNCTIONs. Reported once per file, at the first such declaration, with
+    a count of the others. Types of another file are not checked: their order is the order of
+    the files OpenPLC gets (the export puts the types file first)."""
+    late: dict[str, list[tuple[A.TypeDecl, A.TypeDecl]]] = {}
+    for key, td in decls.items():
+        if key in skip:
+            continue
+        for e in type_holder(td).edges:
+            target = decls.get(e.target)
+            if target is None or e.target == key or target.pos.file != td.pos.file:
+                continue
+            if (target.pos.line, target.pos.col) > (td.pos.line, td.pos.col):
+                late.setdefault(td.pos.file, []).append((td, target))
+                break
+    for pairs in late.values():
+        pairs.sort(key=lambda p: (p[0].pos.line, p[0].pos.col))
+        td, target = pairs[0]
+        more = f" ({len(pairs) - 1} more such types in this file)" if len(pairs) > 1 else ""
+        diags.error(td.pos, "E0212", f"type {td.name} uses {target.name}, which is declared "
+                    f"later (line {target.pos.line}): MatIEC rejects a TYPE that names a "
+                    f"later type, even with -p{more}; declare {target.name} first")
+
+
 def _edges(holders: dict[str, Holder], k: str) -> list[Edge]:
     return [e for e in holders[k].edges if e.target in holders]
 
@@ -181,5 +209,6 @@ def _order_and_depth(holders: dict[str, Holder], bad: set[str], diags: Diagnosti
                     h = holders[k]
                     diags.error(h.pos, "E0211", f"{h.kind} {h.name} nests "
                                 f"types or instances {depth[k]} levels deep, more than "
-                                f"{limit}: flatten the data structure")
+                                f"the bench's limit of {limit} (MatIEC takes more): flatten "
+                                "the data structure")
     return [k for k in depth if k not in bad]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from .diagnostics import CODES
-from .limits import NESTING_LIMIT
+from .limits import DECLARATION_ROOM, MAX_PARENTHESES, NESTING_LIMIT, PARSER_STACK, STATEMENT_ROOM
 
 HEADER = """# Diagnostics of `armbench check`
 
@@ -23,25 +23,70 @@ the real tools (see DESIGN.md §5.1): code that passes `armbench check` compiles
 
 
 LIMITS = f"""
-## Limits (E0108, E0210, E0211)
+## Limits (E0108, E0210, E0211, E0212)
 
-- **Nesting (E0108).** Statements, parentheses, unary operators, operands, calls, indices and
-  field accesses may nest at most {NESTING_LIMIT} levels inside one another (counted on the syntax
-  tree; an ELSIF branch, a CASE clause or an argument list adds no level of its own). The C
-  standard guarantees 63 nested parentheses and 127 nested blocks, CPython stops at 200 nested
-  parentheses; MatIEC's parser (bison, default 10,000-entry stack) holds more, so this is a
-  limit of the bench, reported once per file at the first construct beyond it.
+- **Nesting (E0108).** MatIEC is a bison parser built as C++, so its stack cannot grow past
+  bison's initial {PARSER_STACK} entries: deeper nesting is a syntax error in OpenPLC ("Parsing
+  failed because of too many consecutive syntax errors"). The checker replays, on the syntax
+  tree, how many grammar symbols MatIEC's stack holds and reports the first construct beyond
+  it, once per file, naming the constructs around it. The figures below were measured on
+  OpenPLC's own iec2c (`iec2c -f -l -p -r -R -a`, thiagoralves/OpenPLC_v3 @ bb35f69) by binary
+  search; the checker reproduces each exactly, and 750 random mixtures of them near the limit
+  gave the same verdict as iec2c.
+
+  | nested alone, in one statement of a PROGRAM | MatIEC's maximum | stack entries per level |
+  |---|---|---|
+  | `IF b THEN` (first statement of the branch / a later one) | 63 / 47 | 3 / 4 |
+  | `IF b THEN x := 0; ELSE` | 31 | 6 |
+  | `IF b THEN x := 0; ELSIF b THEN` | 23 | 8 |
+  | `CASE x OF 1:` (first branch / a later branch / `ELSE`) | 38 / 31 / 38 | 5 / 6 / 5 |
+  | `FOR i := 0 TO 1 DO` / with `BY 1` | 27 / 21 | 7 / 9 |
+  | `WHILE b DO` | 63 | 3 |
+  | `REPEAT` (first statement / a later one) | 189 / 95 | 1 / 2 |
+  | parentheses `((x))` | {MAX_PARENTHESES} | 1 |
+  | `-(`, `NOT (`, `f(`, `a[` | 94 | 2 |
+  | `f(a := `, `f(x, `, `a[x, `, `x + x * (` | 47, 47, 47, 37 | 4, 4, 4, 5 |
+  | `x + (` | 63 | 3 |
+  | nested STRUCT initial values `(n := (n := ...))` in VAR | 61 | 3 |
+
+  A statement of a PROGRAM or FUNCTION_BLOCK has {STATEMENT_ROOM["program_declaration"]} entries
+  (a FUNCTION {STATEMENT_ROOM["function_declaration"]}: 188 parentheses), a declaration
+  {DECLARATION_ROOM}; the number of VAR blocks and POUs before does not matter. What a construct
+  keeps on the stack follows MatIEC's grammar: `IF`, condition, `THEN`, the statements so far
+  (from the second statement on), `ELSIF`/`ELSE` after the branch lists, a binary operator's
+  left operand and the operator, a call's name, `(` and earlier arguments, and so on. Literals
+  take more than one entry: `T#1s` 7, `TIME#1s` and `T#-1s` 8, `DT#...` 9, `D#...` 6,
+  `DATE#`/`TOD#` 7, `DINT#5` 3, `DINT#-5` 4, `-5` 2. Where the bench is stricter, by one entry
+  at most: `BOOL#1` is counted as a typed literal of 2, `T#..` with both `TIME#` and a sign 9,
+  and a FUNCTION_BLOCK call statement as 3. Nesting is per statement: nothing accumulates
+  across statements or POUs.
+- **Nesting the bench refuses (E0108).** Independently, the bench's own passes recurse over the
+  syntax tree, so more than {NESTING_LIMIT} levels of it are refused. MatIEC's stack is the
+  tighter limit except for chains of field accesses and indices on one variable
+  (`s.f.f[1].f`), which MatIEC parses flat (16,384 levels measured): the bench stops them at
+  {NESTING_LIMIT} levels (100 for `.f[1]` steps), and the types they need stop at E0211 anyway.
 - **Long chains are not nesting.** `a + b + c + ...`, `x AND y AND z ...` and other
-  left-associative chains of binary operators may have any length (tested to 20,000 terms);
-  the C for them is split into temporaries every 100 operators, so gcc never sees deep
-  expressions. Long ELSIF and CASE lists and long call graphs are flat as well.
+  left-associative chains of binary operators, long ELSIF and CASE lists, CASE value lists,
+  statement lists, VAR lists, enumerations, STRUCT fields, ARRAY initial values and POUs are
+  left-recursive in MatIEC's grammar: 5,000 of each were measured to pass iec2c. The bench
+  accepts any length (tested to 20,000 terms; its C splits long chains every 100 operators).
 - **Containment (E0210).** A STRUCT may not contain itself, directly, through other STRUCTs or
   through an ARRAY of itself; a FUNCTION_BLOCK may not hold an instance of itself, directly or
   through other FBs. Each cycle group is reported once, at the declaration that comes first
   in the file, naming one cycle: `STRUCT A contains itself through A.b -> B.a`. VAR_IN_OUT
   and VAR_EXTERNAL are references, not containment.
 - **Type depth (E0211).** STRUCTs, ARRAY types and FB instances may hold one another at most
-  {NESTING_LIMIT} levels deep (an alias `TYPE T1 : T2; END_TYPE` adds no level).
+  {NESTING_LIMIT} levels deep (an alias `TYPE T1 : T2; END_TYPE` adds no level). This is the
+  bench's limit: MatIEC takes 500 STRUCT levels declared in order.
+- **Declaration order (E0212).** A TYPE may name only types declared before it in the file: a
+  STRUCT field, an ARRAY element type or an alias naming a later type (STRUCT, ARRAY, enum,
+  subrange or alias; in the same TYPE block or a later one) fails in MatIEC even with `-p`
+  ("invalid specification in structure element declaration", "invalid item data type in array
+  specification", "invalid specification in data type declaration"). POUs are not affected:
+  a variable of a later type, an instance of a later FUNCTION_BLOCK, a FUNCTION whose input or
+  result has a later type and a call of a later FUNCTION all build in OpenPLC. Reported once
+  per file with a count of the others; types from another file are not checked (OpenPLC gets
+  one file: the export puts the types first).
 """
 
 

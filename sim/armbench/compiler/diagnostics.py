@@ -19,9 +19,9 @@ CODES: dict[str, tuple[str, str]] = {
     "E0105": ("unsupported construct", "rewrite with the IEC 61131-3 subset MatIEC accepts"),
     "E0106": ("'**' power operator", "use EXPT(x, 2.0) or x * x: OpenPLC lacks __expt"),
     "E0107": ("missing ';' after END_STRUCT", "write END_STRUCT; inside TYPE ... END_TYPE"),
-    "E0108": ("nesting too deep", f"nest statements and expressions at most {NESTING_LIMIT} "
-              "levels: move inner parts into variables or FUNCTIONs (long flat chains like "
-              "a + b + c are fine)"),
+    "E0108": ("nesting too deep", "MatIEC's parser stack overflows (e.g. beyond 63 nested IFs "
+              "or 189 nested parentheses; see Limits below): move inner parts into variables or "
+              "FUNCTIONs (long flat chains like a + b + c are fine)"),
     "E0200": ("undeclared name", "declare the variable, type or POU"),
     "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
     "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
@@ -41,7 +41,9 @@ CODES: dict[str, tuple[str, str]] = {
               "cannot hold itself, directly or through others: keep the repeated part in an "
               "array and refer to it by index, or pass it as VAR_IN_OUT"),
     "E0211": ("types nested too deep", f"nest STRUCTs, ARRAY types and FB instances at most "
-              f"{NESTING_LIMIT} levels deep"),
+              f"{NESTING_LIMIT} levels deep (a limit of the bench)"),
+    "E0212": ("type used before its declaration", "declare a type before the TYPEs that name "
+              "it (STRUCT fields, ARRAY elements, aliases): MatIEC rejects later types there"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "

@@ -12,7 +12,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from . import ast as A
-from .containment import check_containment, pou_holder, type_holder
+from .containment import check_containment, check_declaration_order, pou_holder, type_holder
 from .diagnostics import Diagnostics
 from .resolve_decl import Declarations
 from .resolve_std import StdCallTyper
@@ -97,6 +97,7 @@ class Checker(Declarations):
             if sym.node is not None and sym.kind != "FUNCTION":
                 holders.setdefault(sym.key, pou_holder(sym.node))
         bad, order = check_containment(holders, self.d)
+        check_declaration_order(self.type_decls, bad, self.d)
         for key in bad:
             if key in self.type_decls:
                 self.types[key] = ERROR_T

@@ -103,6 +103,12 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
             diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
                         "fails on them: remove it")
             continue
+        if n.type == "unary_expression":
+            operand = n.child_by_field_name("operand")
+            if operand is not None and operand.type == "unary_expression":
+                diags.error(pf.pos(n), "E0105", "unsupported construct: a unary operator right "
+                            f"after another ('{pf.text_of(n)}'): MatIEC's grammar rejects "
+                            "'NOT NOT b' and '- -x': write NOT (NOT b), -(-x)")
         if n.type == "real_literal" and "." not in pf.text_of(n):
             diags.error(pf.pos(n), "E0104", f"real literal '{pf.text_of(n)}' needs a point "
                         "with digits on both sides (MatIEC rejects 1E3): write 1.0E3")
