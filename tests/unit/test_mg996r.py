@@ -11,17 +11,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from float32_support import DEFAULT_CAL
 
 NO_ERROR, NOT_FINITE, BAD_CALIBRATION = 0, 3, 5
 
-DEFAULT_CAL: dict[str, Any] = {
-    "ZeroOffsetDeg": 0.0,
-    "Direction": 1,
-    "MinPulseUs": 1000.0,
-    "MaxPulseUs": 2000.0,
-    "MinAngleDeg": -60.0,
-    "MaxAngleDeg": 60.0,
-}
 
 
 def cal(**changes: Any) -> dict[str, Any]:

@@ -23,11 +23,19 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
+from float32_support import any_real as _any_real  # noqa: E402
+from float32_support import f32, finite  # noqa: E402
 from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
+from armbench.plant.arm import wrap180  # noqa: E402
+
+
+def any_real() -> Any:
+    """float32 values, with the coordinate limit 1.0E6 mm and its neighbours often."""
+    return _any_real(extra=(1.0e6, -1.0e6, 1.0000001e6))
+
 NO_ERROR, UNREACHABLE, SINGULAR, NOT_FINITE, BAD_GEOMETRY = 0, 1, 2, 3, 4
-FINITE_LIMIT = float(np.float32(1.0e30))  # IsFiniteReal compares with the REAL 1.0E30
 MAX_COORD_MM = 1.0e6
 MAX_TOOL_DEG = 360.0
 MAX_FK_ANGLE_DEG = 1.0e6
@@ -37,33 +45,14 @@ ANGLE_FIELDS = ("Base", "Shoulder", "Elbow", "GripperUpDown", "Gripper", "ElbowR
                 "GripperRotate")
 TOOL_FIELDS = ("GripperUpDown", "Gripper", "ElbowRotate", "GripperRotate")
 DEFAULT_GEO = {"A1": 100.0, "A2": 20.0, "A3": 120.0, "A4": 130.0}
-# float32 values exactly (what the PLC holds)
-F32_EXTREMES = [float(np.float32(v)) for v in (
-    0.0, -0.0, 1.0, -1.0, 1.0e6, -1.0e6, 1.0000001e6, 1.0e30, -1.0e30,
-    1.0000001e30, 3.4028235e38, -3.4028235e38, 1.0e-45, math.nan, math.inf, -math.inf,
-)]
 
 
-def f32(x: float) -> float:
-    return float(np.float32(x))
 
 
-def finite(x: float) -> bool:
-    return math.isfinite(x) and abs(x) <= FINITE_LIMIT
 
 
-def any_real() -> st.SearchStrategy[float]:
-    return st.one_of(st.floats(width=32), st.sampled_from(F32_EXTREMES))
 
 
-def wrap180(x: float) -> float:
-    """Fold into (-180, 180], float64, exact for float32 inputs."""
-    r = math.fmod(x, 360.0)
-    if r > 180.0:
-        r -= 360.0
-    elif r <= -180.0:
-        r += 360.0
-    return r
 
 
 def angle_diff(a: float, b: float) -> float:

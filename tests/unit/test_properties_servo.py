@@ -17,48 +17,27 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
+from float32_support import DEFAULT_CAL, any_real, f32, finite  # noqa: E402
 from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 NO_ERROR, NOT_FINITE, BAD_CALIBRATION, BAD_CHANNEL, BAD_FREQUENCY = 0, 3, 5, 6, 7
-FINITE_LIMIT = float(np.float32(1.0e30))  # IsFiniteReal compares with the REAL 1.0E30
 PULSE_MIN_US, PULSE_MAX_US = 500.0, 2500.0
 ANGLE_MIN_DEG, ANGLE_MAX_DEG = -90.0, 90.0
 ZERO_MAX_DEG = 180.0
 SCALE_MIN, SCALE_MAX = 5.0, 15.0  # us/deg
 INT_MIN, INT_MAX = -32768, 32767
 
-DEFAULT_CAL: dict[str, Any] = {
-    "ZeroOffsetDeg": 0.0,
-    "Direction": 1,
-    "MinPulseUs": 1000.0,
-    "MaxPulseUs": 2000.0,
-    "MinAngleDeg": -60.0,
-    "MaxAngleDeg": 60.0,
-}
-
-# float32 values exactly (what the PLC holds)
-F32_EXTREMES = [float(np.float32(v)) for v in (
-    0.0, -0.0, 1.0, -1.0, 1.0e30, -1.0e30, 1.0000001e30, 3.4028235e38, -3.4028235e38,
-    1.0e-45, math.nan, math.inf, -math.inf,
-)]
 
 
-def f32(x: float) -> float:
-    return float(np.float32(x))
 
 
-def finite(x: float) -> bool:
-    return math.isfinite(x) and abs(x) <= FINITE_LIMIT
 
 
-def any_real() -> st.SearchStrategy[float]:
-    """Every float32, with the boundaries that matter drawn often."""
-    return st.one_of(st.floats(width=32), st.sampled_from(F32_EXTREMES))
+
 
 
 def int16() -> st.SearchStrategy[int]:
