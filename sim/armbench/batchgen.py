@@ -100,11 +100,11 @@ def copy_out() -> list[str]:
     for k in range(1, POINTS + 1):
         n = f"{k:02d}"
         lines += [
-            f"{INDENT}ResBase{n} := BatchOut[{k}].Angles.Base; "
+            f"{INDENT[:2]}ResBase{n} := BatchOut[{k}].Angles.Base; "
             f"ResShoulder{n} := BatchOut[{k}].Angles.Shoulder;",
-            f"{INDENT}ResElbow{n} := BatchOut[{k}].Angles.Elbow; "
+            f"{INDENT[:2]}ResElbow{n} := BatchOut[{k}].Angles.Elbow; "
             f"ResErrorId{n} := BatchOut[{k}].ErrorId;",
-            f"{INDENT}ResX{n} := BatchOut[{k}].Echo.X; ResY{n} := BatchOut[{k}].Echo.Y; "
+            f"{INDENT[:2]}ResX{n} := BatchOut[{k}].Echo.X; ResY{n} := BatchOut[{k}].Echo.Y; "
             f"ResZ{n} := BatchOut[{k}].Echo.Z;",
         ]
     return lines
@@ -139,15 +139,11 @@ def mailbox_copy_out() -> list[str]:
                   for k in range(1, MAILBOXES + 1) for name, field, _, _ in ANSWER_FIELDS], 2)
 
 
-def batch_copy_out() -> list[str]:
-    return [line[2:] for line in copy_out()]
-
-
 REGIONS: dict[str, Callable[[], list[str]]] = {
     "mailbox answers": mailbox_answers, "mailbox commands": mailbox_commands,
     "mailbox copy in": mailbox_copy_in, "mailbox copy out": mailbox_copy_out,
     "batch targets": targets, "batch results": results,
-    "batch copy in": copy_in, "batch copy out": batch_copy_out,
+    "batch copy in": copy_in, "batch copy out": copy_out,
 }
 
 
