@@ -34,6 +34,7 @@ from armbench.plant import redundant_chain as rc  # noqa: E402
 POU = "ChainResolvedRateFixed"
 FILES = ["ArmAngles.st", "KinematicsFixedTables.st", "KinematicsFixed.st",
          "KinematicsChainFixed.st"]
+KERNEL_F32 = HERE.parent / "kernels" / "chain_step_f32.c"
 SEED_MS = 34.0
 SEED_NS_PER_INSTRUCTION = 25.0
 
@@ -60,6 +61,77 @@ def host_outputs(files: list[Path], sym: Any, args: list[dict[str, Any]]) -> lis
         rows.append([x for v in sym.vars.values() if v.kind == rb.A.VAR_OUTPUT
                      for x in rb.py_leaves(v.type, inst.get(v.name))])
     return rows
+
+
+def float_harness() -> tuple[str, list[list[float]]]:
+    """The C harness of the float32 kernel (same line, same start) and the host float32
+    joints (armbench.plant.redundant_chain.track_float32) it must reproduce."""
+    points = rc.line_points()
+    q0 = rc.from_turn24(rc.to_turn24(rc.start_configuration(points[0])))
+    geo = rc.DEFAULT_CHAIN
+    host = rc.track_float32(points, q0).tolist()
+    tgt = ",\n  ".join(", ".join(f"{float(v).hex()}f" for v in x) for x in points.astype("f4"))
+    lines = ['#include "kernel_gen.c"', '#include "semihost.h"', f"#define N {len(points)}",
+             "volatile float bench_sink_f;",
+             f"static const float TARGET[N][3] = {{\n  {tgt}\n}};",
+             "static const chain_geo_f32 GEO = {" + ", ".join(
+                 f"{v.hex()}f" for v in (geo.a1, geo.a2, geo.a3, geo.a4, geo.a5)) + "};",
+             "static uint32_t fbits(float f) { union { float f; uint32_t u; } c; c.f = f; "
+             "return c.u; }",
+             "int main(void) {",
+             "    float q[4] = {" + ", ".join(f"{float(v).hex()}f" for v in q0) + "};",
+             "    int fails = 0;",
+             "    for (int32_t i = 0; i < N; i++) {",
+             "        bench_mark_begin(i);",
+             "#ifdef BENCH_EMPTY",
+             "        bench_sink_f = TARGET[i][0] + TARGET[i][1] + TARGET[i][2];",
+             "        bench_mark_end(i);",
+             "#else",
+             "        int rc = i == 0 ? 0 : chain_step_f32(&GEO, q, TARGET[i]);",
+             "        bench_mark_end(i);",
+             "        fails += rc;",
+             '        bench_puts("R "); bench_put_dec(i); bench_puts(" 0");',
+             "        for (int k = 0; k < 4; k++) {",
+             "            bench_puts(\" \"); bench_put_hex(fbits(q[k]));",
+             "        }",
+             '        bench_puts("\\n");',
+             "#endif",
+             "    }",
+             "    return fails ? 1 : 0;",
+             "}", ""]
+    return "\n".join(lines), host
+
+
+def count_float(root: Path, opt: str, timeout: float) -> dict[str, Any]:
+    """Instructions of the float32 kernel over the 100 intervals, checked against the host."""
+    harness, host = float_harness()
+    kernel = KERNEL_F32.read_text(encoding="utf-8")
+    runs = {}
+    for empty in (False, True):
+        wd = root / f"chain_f32_{opt}{'_empty' if empty else ''}"
+        elf, info = rb.build(wd, kernel, harness, opt, empty)
+        runs[empty] = (*rb.run_qemu(elf, info, timeout), info)
+    rc_full, text, counts, info = runs[False]
+    rc_empty, _, counts_empty, info_empty = runs[True]
+    problems = []
+    if rc_full != 0 or rc_empty != 0:
+        problems.append(f"QEMU exit {rc_full}/{rc_empty}: {text[-300:]}")
+    rows, _ = rb.parse_outputs(text)
+    worst = 0.0
+    for i, want in enumerate(host):
+        if i not in rows:
+            problems.append(f"float step {i}: no output")
+            break
+        got = [rb.decode(t, "real") for t in rows[i][1]]
+        worst = max(worst, max(abs(a - b) for a, b in zip(got, want, strict=True)))
+    if worst > 1e-5:  # newlib's sinf/cosf vs numpy's float32 sin/cos: a few ulp per step
+        problems.append(f"float joints differ from the host float32 run by {worst:.2e} rad")
+    per = [a - b for a, b in zip(counts, counts_empty, strict=False)][1:]
+    return {"opt": opt, "instructions_100_intervals": sum(per),
+            "per_step": sum(per) / max(len(per), 1),
+            "per_step_min": min(per) if per else 0, "per_step_max": max(per) if per else 0,
+            "flash_delta": info["text"] + info["data"] - info_empty["text"]
+            - info_empty["data"], "max_dev_vs_host_rad": worst, "problems": problems}
 
 
 def main() -> int:
@@ -125,23 +197,30 @@ def main() -> int:
             ok = False
             for p in problems:
                 print(f"FAIL -{opt}: {p}")
+    floats = [count_float(root, opt, opts.timeout) for opt in opts.opt]
+    for r in floats:
+        for p in r["problems"]:
+            ok = False
+            print(f"FAIL float32 -{r['opt']}: {p}")
     seed_instr = SEED_MS * 1e6 / SEED_NS_PER_INSTRUCTION
     print(f"\nDocument 003's line, 100 intervals, {POU} (Cortex-M3 soft, QEMU "
           "stm32vldiscovery): executed instructions")
-    hdr = (f"{'-O':<4} {'100 intervals':>14} {'per step':>10} {'min..max':>15} "
+    hdr = (f"{'kernel':<22} {'-O':<4} {'100 intervals':>14} {'per step':>10} {'min..max':>15} "
            f"{'Δflash B':>9} {'at 25 ns':>9} {'seed 34 ms':>11} {'check':>6}")
     print(hdr)
     print("-" * len(hdr))
-    for r in results:
+    for name, r in [*(("fixed point ST", r) for r in results),
+                    *(("float32 C (soft-float)", r) for r in floats)]:
         ms = r["instructions_100_intervals"] * SEED_NS_PER_INSTRUCTION * 1e-6
-        print(f"{'-' + r['opt']:<4} {r['instructions_100_intervals']:>14,} "
+        print(f"{name:<22} {'-' + r['opt']:<4} {r['instructions_100_intervals']:>14,} "
               f"{r['per_step']:>10.1f} {str(r['per_step_min']) + '..' + str(r['per_step_max']):>15}"
               f" {r['flash_delta']:>9} {ms:>7.2f} ms {seed_instr:>11,.0f} "
               f"{'ok' if not r['problems'] else 'FAIL':>6}")
     print(f"seed = 34 ms / 25 ns = {seed_instr:,.0f} instructions (TMS320F206, the truss's own "
           "equations); 'at 25 ns' = our count at the seed's instruction time.")
     if opts.json:
-        opts.json.write_text(json.dumps({"results": results}, indent=2) + "\n")
+        opts.json.write_text(json.dumps({"results": results, "float32": floats}, indent=2)
+                             + "\n")
     if not opts.build_dir:
         shutil.rmtree(root, ignore_errors=True)
     return 0 if ok else 1
