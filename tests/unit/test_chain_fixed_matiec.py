@@ -1,0 +1,128 @@
+"""The fixed-point 003 line and the 5-axis IK on the real MatIEC + OpenPLC runtime.
+
+One PROGRAM runs document 003's line (Reset + 100 steps of ChainResolvedRateFixed) and a
+5-axis IK in its first scan; OpenPLC's own toolchain (MATIEC_CHECK=/opt/realplc/check-st.sh,
+with run-st.sh beside it) and the bench compiler must print the same integers, bit for bit,
+and REAL joints within float32 rounding. Skips where the real toolchain is absent.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from armbench.plant import redundant_chain as rc
+
+REPO = Path(__file__).resolve().parents[2]
+ST = REPO / "st"
+FILES = ["ArmAngles.st", "Kinematics.st", "KinematicsFixedTables.st", "KinematicsFixed.st",
+         "KinematicsChainFixed.st", "Kinematics5Axis.st"]
+
+
+def _run_st() -> Path | None:
+    check = os.environ.get("MATIEC_CHECK")
+    if not check:
+        return None
+    run = Path(os.environ.get("MATIEC_RUN", Path(check).with_name("run-st.sh")))
+    return run if run.is_file() else None
+
+
+def _program() -> str:
+    init = rc.to_turn24(rc.start_configuration(rc.line_points()[0]))
+    inits = "\n".join(f"    Init[{k}] := {v};" for k, v in enumerate(init, start=1))
+    return f"""PROGRAM ChainLineMain
+  VAR
+    Rr : ChainResolvedRateFixed;
+    Ik : InverseKinematik5Axis;
+    Geo : ChainGeometryFixed;
+    Geo5 : FiveAxisGeometry;
+    Init : ChainJointsFixed;
+    K : DINT;
+    Q1 : DINT;
+    Q2 : DINT;
+    Q3 : DINT;
+    Q4 : DINT;
+    Sum : LINT;
+    Fails : DINT;
+    Done : BOOL;
+    Base5 : REAL;
+    Shoulder5 : REAL;
+    Elbow5 : REAL;
+    Wrist5 : REAL;
+    Err5 : INT;
+  END_VAR
+  IF NOT Done THEN
+{inits}
+    Rr(TargetXUm := 0, TargetYUm := 0, TargetZUm := 0, Geometry := Geo, DampingUm := 0,
+       Reset := TRUE, InitJoints := Init);
+    FOR K := 1 TO 100 DO
+      Rr(TargetXUm := 522689 + (248750 * K) / 100, TargetYUm := -818450 - (147250 * K) / 100,
+         TargetZUm := 472752 + (248750 * K) / 100, Geometry := Geo, DampingUm := 0,
+         Reset := FALSE, InitJoints := Init);
+      IF NOT Rr.Valid THEN
+        Fails := Fails + 1;
+      END_IF;
+      Sum := Sum + DINT_TO_LINT(Rr.Joints[1]) + DINT_TO_LINT(Rr.Joints[2])
+             + DINT_TO_LINT(Rr.Joints[3]) + DINT_TO_LINT(Rr.Joints[4]);
+    END_FOR;
+    Q1 := Rr.Joints[1];
+    Q2 := Rr.Joints[2];
+    Q3 := Rr.Joints[3];
+    Q4 := Rr.Joints[4];
+    Ik(XMm := 150.0, YMm := 60.0, ZMm := 90.0, TipFixed := TRUE, UseToolVector := FALSE,
+       PitchDeg := -30.0, RollDeg := 20.0, DirX := 0.0, DirY := 0.0, DirZ := 0.0,
+       ElbowUp := TRUE, Geometry := Geo5);
+    Base5 := Ik.Angles.Base;
+    Shoulder5 := Ik.Angles.Shoulder;
+    Elbow5 := Ik.Angles.Elbow;
+    Wrist5 := Ik.Angles.GripperUpDown;
+    Err5 := Ik.ErrorId;
+    Done := TRUE;
+  END_IF;
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK task0(INTERVAL := T#20ms, PRIORITY := 0);
+    PROGRAM instance0 WITH task0 : ChainLineMain;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+@pytest.mark.skipif(_run_st() is None, reason="MATIEC_CHECK (e.g. /opt/realplc/check-st.sh) "
+                    "with run-st.sh beside it not set or missing")
+def test_real_matiec_runs_the_003_line_bit_for_bit(tmp_path: Path) -> None:
+    from armbench.compiler import compile_files
+
+    run_st = _run_st()
+    assert run_st is not None
+    program = tmp_path / "chain_line_main.st"
+    # one file, as OpenPLC uploads it: the library files, then the program
+    program.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in FILES)
+                       + "\n" + _program(), encoding="utf-8")
+    bash = shutil.which("bash") or "/bin/bash"
+    run = subprocess.run([bash, str(run_st), "-n", "1", str(program)], capture_output=True,
+                         text=True, timeout=600, check=False)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    real = dict(re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M))
+
+    mod = compile_files([program])
+    prog: Any = mod.instance("instance0")
+    mod.config_init()
+    mod.run_task_index(0, 0)
+    ints = ["Q1", "Q2", "Q3", "Q4", "SUM", "FAILS", "ERR5"]
+    ours = {n: int(prog.get(n)) for n in ints}
+    print(f"\nreal MatIEC: {[real.get(n) for n in ints]}\nbench:       "
+          f"{[ours[n] for n in ints]}")
+    for n in ints:
+        assert int(real[n]) == ours[n], n
+    assert ours["FAILS"] == 0 and ours["ERR5"] == 0
+    for n in ("BASE5", "SHOULDER5", "ELBOW5", "WRIST5"):
+        assert abs(float(real[n]) - float(prog.get(n))) < 1e-3, n
