@@ -40,6 +40,7 @@ from .sources import _walk
 _ADDRESS = re.compile(r"^%([IQM])([XBWDL])(\d+)(?:\.(\d+))?$", re.IGNORECASE)
 SIZE_BYTES = {"X": 1, "B": 1, "W": 2, "D": 4, "L": 8}
 _SIZE_ORDER = "LDWBX"  # placement order: larger first
+DEVICE_MAX_REGISTERS = 4096  # per register kind (CODESYS Modbus TCP Server Device)
 TAIL_ALIGN = 16  # bytes: the moved variables start on this boundary after the fixed ones
 
 
@@ -213,6 +214,9 @@ def render_register_map(placed: list[Placed], title: str) -> str:
         "significant word first. Not verified on a CODESYS runtime here (none can be installed",
         "on this machine); the layout itself is checked by `tests/export/test_codesys.py`.",
         "",
+        *([f"**Warning**: more than {DEVICE_MAX_REGISTERS} registers are needed, the most a "
+           "Modbus TCP Server Device offers: this program does not fit one device.", ""]
+          if max(span(holding), span(inputs)) > DEVICE_MAX_REGISTERS else []),
         "| name | type | OpenPLC | CODESYS | Modbus table | address | words |",
         "|---|---|---|---|---|---:|---:|",
     ]
