@@ -18,8 +18,10 @@ from pathlib import Path
 
 import pytest
 from lxml import etree
+from plcopen_to_st import xml_to_st
 
 from armbench.compiler import ast as A
+from armbench.compiler import check_files
 from armbench.compiler.driver import analyse
 from armbench.export import CODESYS_FILE, CODESYS_MAP_FILE, generate
 from armbench.locate import default_project
@@ -232,3 +234,16 @@ def test_located_decls_in_the_source_are_what_the_ast_says() -> None:
                  if isinstance(p, A.Pou) and p.name == "ArmController"
                  for b in p.blocks for d in b.decls if d.address}
     assert ast_decls == declared
+
+
+def test_the_variant_carries_the_whole_program(tmp_path: Path, variant: dict[str, str]) -> None:
+    """ST rebuilt from nothing but the CODESYS XML checks clean except for what is OpenPLC's
+    alone: the moved variables lie beyond OpenPLC's buffers (E0600), which CODESYS has not."""
+    rebuilt = tmp_path / "codesys_from_xml.st"
+    rebuilt.write_text(xml_to_st(COMMITTED_XML.read_bytes()))
+    diags = check_files([rebuilt])
+    assert diags, "expected OpenPLC's buffer limit to flag the moved variables"
+    for d in diags:
+        assert d.code == "E0600" and "outside OpenPLC's buffers" in d.render(), d.render()
+        address = re.search(r"%[IQ][XWD][\d.]+", d.render())
+        assert address is not None and address.group(0) in variant.values(), d.render()
