@@ -42,6 +42,9 @@ CMD_RESERVE_BATCH = _K["CmdReserveBatch"]
 CMD_RELEASE_BATCH = _K["CmdReleaseBatch"]
 CMD_CLOSE = _K["CmdClose"]
 CMD_HELLO = _K["CmdHello"]
+CMD_LUT_SOLVE = _K["CmdLutSolve"]
+CMD_LUT_MOVE_XYZ = _K["CmdLutMoveXyz"]
+CMD_LUT_SOLVE_BATCH = _K["CmdLutSolveBatch"]
 
 ERR_OK = _K["Err.NoError"]
 ERR_UNREACHABLE = _K["Err.Unreachable"]
@@ -78,6 +81,13 @@ _STATUS_FIELDS = ("ScanCount", "CtlState", "BusyMailbox", "CommandsAnswered",
                   "PwmReady", "InitFrames", "BatchOwner", "BatchCount", "BatchFailures")
 _CAL_SUFFIXES = ("ZeroDeg", "Direction", "MinPulseUs", "MaxPulseUs", "MinAngleDeg",
                  "MaxAngleDeg")
+_LUT_FIELDS = ("LutSession", "LutSeq", "LutErrorId", "LutXMm100", "LutYMm100", "LutZMm100",
+               "LutBaseDeg100", "LutShoulderDeg100", "LutElbowDeg100", "LutEchoXMm100",
+               "LutEchoYMm100", "LutEchoZMm100", "LutSolves")
+# answers of commands that did not run (the LUT result block is then someone else's)
+_NOT_RUN = (ERR_BUSY, ERR_BAD_SEQUENCE, ERR_BAD_CHECK, ERR_UNKNOWN_COMMAND)
+# InverseKinematikFixed's input range: |coordinate| <= 1,000,000 x 0.01 mm (KinematicsFixed.st)
+LUT_MAX_MM100 = 1_000_000
 _RESULT_PREFIXES = ("ResBase", "ResShoulder", "ResElbow", "ResX", "ResY", "ResZ", "ResErrorId")
 
 # Between two looks at the answer, the client re-reads its command block this often (s): a
@@ -170,6 +180,41 @@ class BatchPoint:
     joints_deg: tuple[float, float, float]
     echo_mm: tuple[float, float, float]
     error_id: int
+
+
+@dataclass(frozen=True)
+class LutResult:
+    """The LUT result block (LutSolve, LutMoveXyz) in the controller's integer units."""
+
+    session: int
+    seq: int
+    error_id: int
+    target_mm100: tuple[int, int, int]  # 0.01 mm, the integer target the PLC solved
+    angles_deg100: tuple[int, int, int]  # 0.01 deg, Base, Shoulder, Elbow
+    echo_mm100: tuple[int, int, int]  # 0.01 mm, ForwardKinematicFixed of the angles
+    solves: int  # LutSolves: points solved with the LUT since the PLC started
+
+
+@dataclass(frozen=True)
+class LutBatchPoint:
+    """One LutSolveBatch result in integer units (the PLC publishes them as REAL deg and mm
+    that hold whole 0.01 steps)."""
+
+    angles_deg100: tuple[int, int, int]
+    echo_mm100: tuple[int, int, int]
+    error_id: int
+
+
+def lut_target_mm(value_mm100: int) -> float:
+    """The REAL (mm) that carries a 0.01 mm integer to the PLC: value / 100. The PLC's
+    REAL_TO_DINT(mm * 100.0) gives the integer back exactly for every |value| <= 1,000,000
+    (float32 keeps k / 100 and its product with 100 within 0.12 of k)."""
+    if isinstance(value_mm100, bool) or not isinstance(value_mm100, int):
+        raise TypeError(f"LUT coordinates are integers in 0.01 mm, got {value_mm100!r}")
+    if not -LUT_MAX_MM100 <= value_mm100 <= LUT_MAX_MM100:
+        raise ValueError(f"LUT coordinate {value_mm100} (0.01 mm) is outside "
+                         f"+/-{LUT_MAX_MM100} (10 m), the range of InverseKinematikFixed")
+    return value_mm100 / 100.0
 
 
 @dataclass(frozen=True)
@@ -296,6 +341,7 @@ class ArmControllerClient:
                                   for a in "XYZ")
         self._results = _Block.of(f"{p}{k:02d}" for k in range(1, self.batch_max + 1)
                                   for p in _RESULT_PREFIXES)
+        self._lut = _Block.of(_LUT_FIELDS)
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
@@ -626,9 +672,10 @@ class ArmControllerClient:
             self._holds_batch = False
 
     def submit_batch(self, points: Sequence[tuple[float, float, float]],
-                     elbow_down: bool = False) -> Pending:
-        """Write up to ``batch_max`` targets, then the SolveBatch block (not waited for); the
-        caller must hold the batch buffer (:meth:`batch_buffer`)."""
+                     elbow_down: bool = False, code: int = CMD_SOLVE_BATCH) -> Pending:
+        """Write up to ``batch_max`` targets, then the SolveBatch block (``code``:
+        LutSolveBatch for the LUT) without waiting; the caller must hold the batch buffer
+        (:meth:`batch_buffer`)."""
         n = len(points)
         if not 1 <= n <= self.batch_max:
             raise ValueError(f"a batch holds 1..{self.batch_max} points, got {n}")
@@ -637,7 +684,7 @@ class ArmControllerClient:
         # 3 REALs = 6 words per point; writing them again after a broken connection is harmless
         self._io(lambda: self._write(self._targets.address, words[: 6 * n]),
                  time.monotonic() + self.timeout_s)
-        return self._send(self.open(), CMD_SOLVE_BATCH, (int(elbow_down), n), ())
+        return self._send(self.open(), code, (int(elbow_down), n), ())
 
     def batch_results(self, n: int) -> list[BatchPoint]:
         """The first ``n`` SolveBatch results (read after the acknowledge)."""
@@ -649,11 +696,12 @@ class ArmControllerClient:
                            int(v[i + 6])) for i in range(0, per * n, per)]
 
     def solve_batch(self, points: Sequence[tuple[float, float, float]],
-                    elbow_down: bool = False) -> list[BatchPoint]:
-        """One SolveBatch of up to ``batch_max`` points: write, acknowledge, read back."""
+                    elbow_down: bool = False, code: int = CMD_SOLVE_BATCH) -> list[BatchPoint]:
+        """One SolveBatch (or ``code`` LutSolveBatch) of up to ``batch_max`` points: write,
+        acknowledge, read back."""
         with self.batch_buffer():
             try:
-                result = self.wait(self.submit_batch(points, elbow_down))
+                result = self.wait(self.submit_batch(points, elbow_down, code))
             except MailboxLost as exc:
                 self.mailbox = None
                 self._holds_batch = False  # went with the mailbox
@@ -670,4 +718,63 @@ class ArmControllerClient:
         with self.batch_buffer():
             for i in range(0, len(points), self.batch_max):
                 out += self.solve_batch(points[i: i + self.batch_max], elbow_down)
+        return out
+
+    # -- LUT variant (codes 20..22: InverseKinematikFixed, integer units) ------------------
+
+    def lut_result(self) -> LutResult:
+        """The LUT result block as it is now (one read: a consistent snapshot)."""
+        v = [int(x) for x in self._lut.decode(self._read(self._lut.address, self._lut.length))]
+        return LutResult(v[0], v[1], v[2], (v[3], v[4], v[5]), (v[6], v[7], v[8]),
+                         (v[9], v[10], v[11]), v[12])
+
+    def _lut_command(self, code: int, target_mm100: tuple[int, int, int],
+                     elbow_down: bool) -> LutResult:
+        args = tuple(lut_target_mm(v) for v in target_mm100)
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            st = self.command(code, ints=(int(elbow_down), 0), args=args)
+            if st.error_id in _NOT_RUN:
+                # answered without running (Busy while InitPwm runs, or a PLC program
+                # without the LUT commands): the result block is not this command's
+                return LutResult(self.session, st.ack_seq, st.error_id, (0, 0, 0), (0, 0, 0),
+                                 (0, 0, 0), 0)
+            res = self._io(self.lut_result, deadline)
+            if (res.session, res.seq) == (self.session, st.ack_seq):
+                return res
+            # another client's LUT command overwrote the shared block before the read: the
+            # solve has no side effect beyond the block (a LutMoveXyz moves to the same
+            # angles again), so run it again
+            if time.monotonic() > deadline:
+                raise HandshakeTimeout(
+                    f"LUT code {code}: the result block kept being overwritten by other "
+                    f"clients for {self.timeout_s:g} s (last result code {st.error_id})")
+
+    def lut_solve(self, x_mm100: int, y_mm100: int, z_mm100: int,
+                  elbow_down: bool = False) -> LutResult:
+        """LutSolve: InverseKinematikFixed of an integer target (0.01 mm) in the PLC; the
+        servos do not move. Check ``error_id`` (1 Unreachable, 2 Singular, ...)."""
+        return self._lut_command(CMD_LUT_SOLVE, (x_mm100, y_mm100, z_mm100), elbow_down)
+
+    def lut_move_xyz(self, x_mm100: int, y_mm100: int, z_mm100: int,
+                     elbow_down: bool = False) -> LutResult:
+        """LutMoveXyz: LutSolve, then the servos move as with MoveXyz (``status()`` shows
+        the joints); ``error_id`` 101 JointLimit when a servo would clamp."""
+        return self._lut_command(CMD_LUT_MOVE_XYZ, (x_mm100, y_mm100, z_mm100), elbow_down)
+
+    def lut_solve_batch(self, points_mm100: Sequence[tuple[int, int, int]],
+                        elbow_down: bool = False) -> list[LutBatchPoint]:
+        """LutSolveBatch of up to ``batch_max`` integer targets (0.01 mm), any number of
+        them in chunks of ``batch_max`` under one reservation of the batch buffer."""
+        targets = [(lut_target_mm(x), lut_target_mm(y), lut_target_mm(z))
+                   for x, y, z in points_mm100]
+        out: list[LutBatchPoint] = []
+        with self.batch_buffer():
+            for i in range(0, len(targets), self.batch_max):
+                for p in self.solve_batch(targets[i: i + self.batch_max], elbow_down,
+                                          CMD_LUT_SOLVE_BATCH):
+                    deg = tuple(round(a * 100.0) for a in p.joints_deg)
+                    mm100 = tuple(round(c * 100.0) for c in p.echo_mm)
+                    out.append(LutBatchPoint((deg[0], deg[1], deg[2]),
+                                             (mm100[0], mm100[1], mm100[2]), p.error_id))
         return out

@@ -7,7 +7,10 @@ orders them types first, and writes into the ``--out`` folder (``armbench export
 - ``openplc/arm_controller.st``: one ST file (library + program + configuration), the sources'
   text unchanged behind a generated header (:mod:`.openplc`);
 - ``plcopen/arm_controller.xml``: PLCopen TC6 XML v2.01 for CODESYS and the OpenPLC Editor
-  (:mod:`.plcopen`).
+  (:mod:`.plcopen`);
+- ``codesys/arm_controller_codesys.xml`` + ``codesys/register-map.md``: the same XML with the
+  located variables laid out for CODESYS's byte addressing and its Modbus server device
+  (:mod:`.codesys`).
 
 ``armbench export --check`` compares instead of writing. Pipeline: :mod:`.generate` runs the
 checker, :mod:`.sources` orders the files, :mod:`.sttext` slices bodies and comments.
@@ -15,8 +18,16 @@ checker, :mod:`.sources` orders the files, :mod:`.sttext` slices bodies and comm
 
 from __future__ import annotations
 
-from .generate import OPENPLC_FILE, PLCOPEN_FILE, Export, generate, load_sources
+from .generate import (
+    CODESYS_FILE,
+    CODESYS_MAP_FILE,
+    OPENPLC_FILE,
+    PLCOPEN_FILE,
+    Export,
+    generate,
+    load_sources,
+)
 from .sources import default_sources
 
-__all__ = ["OPENPLC_FILE", "PLCOPEN_FILE", "Export", "default_sources", "generate",
-           "load_sources"]
+__all__ = ["CODESYS_FILE", "CODESYS_MAP_FILE", "OPENPLC_FILE", "PLCOPEN_FILE", "Export",
+           "default_sources", "generate", "load_sources"]

@@ -16,12 +16,15 @@ from ..compiler.driver import analyse, expand
 from ..compiler.source import read_source
 from ..compiler.symbols import CheckedProgram
 from ..locate import Project, default_project
+from .codesys import layout, render_register_map
 from .openplc import contents_lines, render_st
 from .plcopen import build_xml
 from .sources import Source, default_sources, dependency_order, display_name
 
 OPENPLC_FILE = Path("openplc") / "arm_controller.st"
 PLCOPEN_FILE = Path("plcopen") / "arm_controller.xml"
+CODESYS_FILE = Path("codesys") / "arm_controller_codesys.xml"
+CODESYS_MAP_FILE = Path("codesys") / "register-map.md"
 TITLE = "arm_controller"
 
 
@@ -99,4 +102,15 @@ def generate(paths: Sequence[str | Path] | None = None,
         *(ln[5:] for ln in contents_lines(prog, sources)),
     ])
     xml = build_xml(prog, sources, title=TITLE, version=version, comment=comment)
-    return Export(prog, sources, {OPENPLC_FILE: st.encode("utf-8"), PLCOPEN_FILE: xml})
+    placed = layout(prog)
+    codesys_comment = comment.replace(
+        "; do not edit.", "; do not edit.\nCODESYS variant: the located variables sit in %I "
+        "(what clients write) and %Q (what the program writes) without overlapping bytes; "
+        f"their Modbus registers are in {CODESYS_MAP_FILE.as_posix()}.", 1)
+    codesys_xml = build_xml(prog, sources, title=f"{TITLE}_codesys", version=version,
+                            comment=codesys_comment,
+                            addresses={id(p.decl): str(p.codesys) for p in placed})
+    codesys_map = render_register_map(placed, TITLE)
+    return Export(prog, sources, {OPENPLC_FILE: st.encode("utf-8"), PLCOPEN_FILE: xml,
+                                  CODESYS_FILE: codesys_xml,
+                                  CODESYS_MAP_FILE: codesys_map.encode("utf-8")})

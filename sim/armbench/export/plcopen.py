@@ -14,7 +14,7 @@ the committed file with a fresh export.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from lxml import etree
@@ -57,9 +57,12 @@ def _text_block(parent: _Element, tag: str, text: str) -> None:
 
 
 class _Builder:
-    def __init__(self, prog: CheckedProgram, sources: Sequence[Source]) -> None:
+    def __init__(self, prog: CheckedProgram, sources: Sequence[Source],
+                 addresses: Mapping[int, str] | None = None) -> None:
         self.prog = prog
         self.sources = sources
+        # id(VarDecl) -> the address written instead of the source's (the CODESYS variant)
+        self.addresses = dict(addresses or {})
         self.texts = {s.unit.pos.file: SourceText(s.text) for s in sources}
 
     # ---------------------------------------------------------------- types and values
@@ -135,7 +138,8 @@ class _Builder:
         if block.constant:
             lst.set("constant", "true")
         for d in block.decls:
-            self.variable(lst, d.name, d.type, d.init, d.address, d.pos)
+            address = self.addresses.get(id(d), d.address) if d.address else None
+            self.variable(lst, d.name, d.type, d.init, address, d.pos)
 
     # ---------------------------------------------------------------- sections
     def data_types(self, parent: _Element) -> None:
@@ -197,9 +201,10 @@ class _Builder:
 
 
 def build_xml(prog: CheckedProgram, sources: Sequence[Source], *, title: str, version: str,
-              comment: str) -> bytes:
-    """The PLCopen XML document for the sources (UTF-8, with XML declaration)."""
-    b = _Builder(prog, sources)
+              comment: str, addresses: Mapping[int, str] | None = None) -> bytes:
+    """The PLCopen XML document for the sources (UTF-8, with XML declaration);
+    ``addresses`` (id of a located VarDecl -> address) relocates variables."""
+    b = _Builder(prog, sources, addresses)
     root = etree.Element(f"{{{NS}}}project", nsmap={None: NS, "xhtml": XHTML})
     _sub(root, "fileHeader", companyName="armbench", productName="armbench export",
          productVersion=version, creationDateTime=FIXED_DATETIME,

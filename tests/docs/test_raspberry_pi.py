@@ -1,0 +1,256 @@
+"""docs/raspberry-pi.md, checked where it can be checked without a Pi: its register numbers and
+command codes against the map derived from Controller.st, its OpenPLC facts against the OpenPLC
+v3 source (/opt/realplc/src, skipped where absent), and its steps 7 and 8 end to end: the
+controller in the soft PLC, the PSM script driving the PCA9685 model through a fake I2C bus
+and reading/writing the PLC's variables as OpenPLC's psm module does, and the page's own
+Python snippet run against it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import io
+import re
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from armbench.demo import serve_controller
+from armbench.plant.pca9685 import PCA9685
+from armbench.registermap import controller_constants, controller_map
+from armbench.softplc.image import ProcessImage
+
+REPO = Path(__file__).resolve().parents[2]
+DOC = REPO / "docs" / "raspberry-pi.md"
+PSM_PATH = REPO / "plc_project" / "psm" / "pca9685_psm.py"
+OPENPLC_SRC = Path("/opt/realplc/src")
+OSC_HZ = 25e6
+PRESCALE = 121
+TICK_US = 1e6 * (PRESCALE + 1) / OSC_HZ  # PCA9685 data sheet: one count at PRE_SCALE 121
+TABLES = {"holding": "holding", "coil": "coil", "discrete": "discrete"}
+
+
+def doc_text() -> str:
+    return DOC.read_text(encoding="utf-8")
+
+
+def table_rows(header_start: str) -> list[list[str]]:
+    """The body rows of the markdown table whose header line starts with header_start."""
+    lines = doc_text().splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith(header_start))
+    rows = []
+    for ln in lines[start + 2:]:
+        if not ln.startswith("|"):
+            break
+        rows.append([c.strip() for c in ln.strip().strip("|").split("|")])
+    return rows
+
+
+def test_doc_registers_are_the_controllers() -> None:
+    rows = table_rows("| what | name | location | Modbus |")
+    assert len(rows) >= 10
+    cmap = controller_map()
+    for _, name, location, modbus in rows:
+        reg = cmap[name.strip("`").upper()]
+        assert location.strip("`") == reg.location, name
+        table, address = modbus.split()
+        assert (TABLES[table], int(address)) == (reg.table, reg.address), name
+
+
+def test_doc_commands_are_the_controllers() -> None:
+    rows = table_rows("| command | code | effect |")
+    k = controller_constants()
+    for name, code, _ in rows:
+        assert k["Cmd" + name.strip("`")] == int(code), name
+    # every "Name (code N)" in the prose too
+    prose = re.findall(r"`(\w+)` \(code (\d+)\)", doc_text())
+    assert len(prose) >= 3
+    for name, code in prose:
+        assert k["Cmd" + name] == int(code), name
+
+
+def test_doc_numbers_follow_the_data_sheet() -> None:
+    text = doc_text()
+    # PRE_SCALE for 50 Hz (data sheet equation 1), one tick, the centre word
+    assert round(OSC_HZ / (4096 * 50.0)) - 1 == PRESCALE
+    assert f"PRE_SCALE {PRESCALE}" in text
+    assert f"{TICK_US:.2f} µs" in text
+    assert f"1500 µs, word {round(1500.0 / TICK_US)}" in text
+    assert "4096 (full off)" in text and 0x1000 == 4096
+
+
+def test_doc_psm_settings_are_the_scripts() -> None:
+    src = PSM_PATH.read_text()
+    assert re.search(r"^I2C_BUS_NUMBER = 1\b", src, re.M)
+    assert re.search(r"^PCA9685_ADDRESS = 0x40\b", src, re.M)
+    assert re.search(r"^AUTO_INIT = True\b", src, re.M)
+    assert "/dev/i2c-1" in doc_text() and "0x40" in doc_text()
+
+
+@pytest.mark.skipif(not OPENPLC_SRC.is_dir(), reason="OpenPLC v3 source not at /opt/realplc/src")
+def test_doc_openplc_facts_are_in_its_source() -> None:
+    web = OPENPLC_SRC / "webserver"
+    text = doc_text()
+    psm_cpp = (web / "core" / "hardware_layers" / "psm.cpp").read_text()
+    assert '"../.venv/bin/python3 -u ./core/psm/main.py' in psm_cpp
+    assert "`../.venv/bin/python3 -u ./core/psm/main.py`" in text
+    page = (web / "webserver.py").read_text()
+    assert ">Python on Linux (PSM)<" in page
+    assert "with open('./core/psm/main.py', 'w+') as f: f.write(custom_layer_code)" in page
+    assert "port=8080" in page
+    assert "'openplc','openplc'" in (web / "check_openplc_db.py").read_text().replace(
+        ", ", ",").replace("'openplc@openplc.com',", "")
+    installer = (OPENPLC_SRC / "background_installer.sh").read_text()
+    rpi = installer[installer.index('elif [ "$1" == "rpi" ]'):]
+    rpi = rpi[: rpi.index("elif", 5)]
+    assert "install_systemd_service" in rpi  # "starts at boot"
+    assert 'VENV_DIR="$OPENPLC_DIR/.venv"' in installer
+    psm_py = (web / "core" / "psm" / "psm.py").read_text()
+    for fn in ("def get_var", "def set_var", "def should_quit", "def start", "def stop"):
+        assert fn in psm_py  # what the PSM script calls
+
+
+# ---------------------------------------------------------------- steps 7 and 8 in the bench
+
+
+def load_psm() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("pca9685_psm_doc", PSM_PATH)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@dataclass
+class ModelBus:
+    """smbus2's block write, served by the PCA9685 model."""
+
+    chip: PCA9685
+
+    def write_i2c_block_data(self, i2c_addr: int, register: int, data: list[int]) -> None:
+        self.chip.write(i2c_addr, register, bytes(data))
+
+
+@dataclass
+class ImageVars:
+    """OpenPLC's psm.get_var/set_var over the soft PLC's process image (the runtime's
+    buffers), under the scan lock."""
+
+    image: ProcessImage
+    lock: threading.Lock
+
+    def _slot(self, name: str) -> tuple[str, int]:
+        m = re.fullmatch(r"([IQ])([XW])(\d+)(?:\.(\d))?", name)
+        assert m, name
+        kind = m.group(1).lower() + m.group(2).lower()
+        index = int(m.group(3)) if m.group(2) == "W" else 8 * int(m.group(3)) + int(m.group(4))
+        return kind, index
+
+    def get_var(self, name: str) -> object:
+        kind, index = self._slot(name)
+        with self.lock:
+            value = int(getattr(self.image, kind)[index])
+        return bool(value) if kind.endswith("x") else value
+
+    def set_var(self, name: str, value: object) -> object:
+        kind, index = self._slot(name)
+        with self.lock:
+            getattr(self.image, kind)[index] = int(bool(value)) if kind.endswith("x") else \
+                int(value)  # type: ignore[call-overload]
+        return None
+
+
+@dataclass
+class PsmLoop:
+    """The PSM's main loop (poll, sleep) in a thread, as the runtime runs it beside the PLC."""
+
+    driver: object
+    stop: threading.Event = field(default_factory=threading.Event)
+    errors: list[BaseException] = field(default_factory=list)
+
+    def run(self) -> None:
+        try:
+            while not self.stop.is_set():
+                self.driver.poll()  # type: ignore[attr-defined]
+                self.stop.wait(0.005)
+        except BaseException as exc:  # a test must see a crash of the loop
+            self.errors.append(exc)
+
+
+@contextlib.contextmanager
+def pi_rehearsal() -> Iterator[tuple[str, int, PCA9685, ImageVars]]:
+    psm = load_psm()
+    chip = PCA9685(address=psm.PCA9685_ADDRESS)
+    with serve_controller() as running:
+        plc_vars = ImageVars(running.plc.image, running.plc.lock)
+        driver = psm.PCA9685Driver(bus=ModelBus(chip), plc=plc_vars, sleep=chip.advance,
+                                   log=lambda _msg: None)
+        loop = PsmLoop(driver)
+        thread = threading.Thread(target=loop.run, daemon=True)
+        thread.start()
+        try:
+            yield running.host, running.port, chip, plc_vars
+        finally:
+            loop.stop.set()
+            thread.join(5.0)
+        assert not loop.errors, loop.errors
+
+
+def python_snippet() -> str:
+    blocks = re.findall(r"```python\n(.*?)```", doc_text(), re.S)
+    assert len(blocks) == 1
+    return blocks[0]
+
+
+def test_first_power_up_and_the_pwm_check_in_the_bench() -> None:
+    from armbench.controller_client import ArmControllerClient
+    from armbench.softplc.modbus_client import PlcClient
+
+    with pi_rehearsal() as (host, port, chip, plc_vars):
+        with PlcClient(host, port) as link, ArmControllerClient(link) as arm:
+            arm.wait_scans(5)
+            # step 7: relaxed at power-up, the PSM ready, no fault, no pulse on the chip
+            assert arm.channel_words()[:3] == [4096, 4096, 4096]
+            deadline_scans = 0
+            while not plc_vars.get_var("IX0.0") and deadline_scans < 50:
+                arm.wait_scans(1)
+                deadline_scans += 1
+            assert link.read_discrete_inputs(0, 2) == [True, False]  # Ready, not Fault
+            assert chip.running
+            assert [chip.pulse_width_us(ch) for ch in range(3)] == [0.0, 0.0, 0.0]
+            # step 8: the page's own snippet, run against this PLC
+            out = io.StringIO()
+            with contextlib.redirect_stdout(out):
+                exec(python_snippet(), {"HOST": host, "PORT": port})  # noqa: S102
+            printed = out.getvalue()
+            assert "at power-up: [4096, 4096, 4096]" in printed
+            assert "InitPwm result 0 prescale 121 ready True" in printed
+            centre = round(1500.0 / TICK_US)
+            assert f"centre words [{centre}, {centre}, {centre}]" in printed
+            assert "PLC pulse widths [1500.0, 1500.0, 1500.0]" in printed
+            assert "relaxed [4096, 4096, 4096]" in printed
+            # what the model made of it: 50 Hz, and the relaxed channels carry no pulse
+            assert chip.prescale == PRESCALE
+            assert chip.update_rate_hz == pytest.approx(OSC_HZ / (4096 * (PRESCALE + 1)))
+            assert abs(chip.update_rate_hz - 50.0) < 0.1
+            arm.move_joints(0.0, 70.0, 65.0)
+            for _ in range(50):
+                if chip.pulse_width_us(0) > 0.0:
+                    break
+                arm.wait_scans(1)
+            for ch in range(3):
+                assert chip.pulse_width_us(ch) == pytest.approx(centre * TICK_US)
+                assert abs(chip.pulse_width_us(ch) - 1500.0) <= TICK_US / 2
+            arm.relax()
+            for _ in range(50):
+                if chip.pulse_width_us(0) == 0.0:
+                    break
+                arm.wait_scans(1)
+            assert [chip.pulse_width_us(ch) for ch in range(3)] == [0.0, 0.0, 0.0]
