@@ -213,3 +213,29 @@ def test_complementary_matches_the_seed_equations(st_module: Any, record: Any,
           f"{angle.max():.2e} deg")
     assert not got.error_ids.any()
     assert angle.max() < 1e-3
+
+
+def test_start_from_the_sensors(st_module: Any) -> None:
+    """InitFromSensors: MadgwickImu starts at the accelerometer tilt (the up direction in the
+    body frame matches, rotation about a horizontal axis), MadgwickMarg at the TRIAD orientation (the whole rotation)."""
+    rng = np.random.default_rng(22)
+    model = ImuModel()
+    for rot in Rotation.random(50, rng=rng):
+        acc = rot.inv().apply([0.0, 0.0, 1.0])
+        mag = rot.inv().apply(model.field_earth)
+        s = {"Gyro": vec_dict([0.0, 0.0, 0.0]), "Accel": vec_dict(acc), "Mag": vec_dict(mag),
+             "Code": 0}
+        imu = st_module.new_fb("MadgwickImu")
+        imu(Reset=True, InitFromSensors=True)
+        imu(Reset=False, Sample=s)
+        q = Rotation.from_quat(quat_row(imu.Orientation), scalar_first=True)
+        assert q.inv().apply([0.0, 0.0, 1.0]) == pytest.approx(acc, abs=1e-5)
+        assert imu.Orientation["Z"] == 0.0  # the rotation axis is horizontal: no twist
+        marg = st_module.new_fb("MadgwickMarg")
+        marg(Reset=True, InitFromSensors=True)
+        marg(Reset=False, Sample=s)
+        got = np.array(quat_row(marg.Orientation))
+        assert float(angle_between_deg(got, rot.as_quat(scalar_first=True))) < 1e-3
+    upside_down = st_module.call("QuatFromAccelTilt", vec_dict([0.0, 0.0, -1.0]))
+    q = Rotation.from_quat(quat_row(upside_down), scalar_first=True)
+    assert q.inv().apply([0.0, 0.0, 1.0]) == pytest.approx([0.0, 0.0, -1.0], abs=1e-6)
