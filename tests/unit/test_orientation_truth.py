@@ -71,3 +71,16 @@ def test_gyro_drifts_and_the_filters_do_not(runs: dict[str, Any]) -> None:
     imu = runs["madgwick_imu"]
     assert window(tilt_error_deg(imu.quats, truth), t, 50, 61) < 1.0  # gravity fixes tilt
     assert window(errors["madgwick_imu"], t, 50, 61) > 5.0  # ... but not the heading
+
+
+def test_figure_script_writes_the_figures_the_chapter_shows(tmp_path: Any) -> None:
+    from pathlib import Path
+
+    from armbench.plots import orientation
+
+    assert orientation.main(["--out", str(tmp_path)]) == 0
+    chapter = (Path(__file__).resolve().parents[2] / "docs" / "orientation.md").read_text()
+    for name in ("orientation-error.png", "orientation-follower.png"):
+        png = tmp_path / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert f"figures/{name}" in chapter, name
