@@ -217,7 +217,8 @@ def test_complementary_matches_the_seed_equations(st_module: Any, record: Any,
 
 def test_start_from_the_sensors(st_module: Any) -> None:
     """InitFromSensors: MadgwickImu starts at the accelerometer tilt (the up direction in the
-    body frame matches, rotation about a horizontal axis), MadgwickMarg at the TRIAD orientation (the whole rotation)."""
+    body frame matches, rotation about a horizontal axis), MadgwickMarg at the TRIAD
+    orientation (the whole rotation)."""
     rng = np.random.default_rng(22)
     model = ImuModel()
     for rot in Rotation.random(50, rng=rng):
