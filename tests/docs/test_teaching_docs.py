@@ -33,7 +33,7 @@ from armbench.compiler import check_files
 
 REPO = Path(__file__).resolve().parents[2]
 DOCS = REPO / "docs"
-CODE_PAGES = sorted([DOCS / "kinematics.md", DOCS / "servo-pwm.md",
+CODE_PAGES = sorted([DOCS / "kinematics.md", DOCS / "servo-pwm.md", DOCS / "orientation.md",
                      *(DOCS / "labs").glob("*.md")])
 LINK_PAGES = sorted([*DOCS.glob("*.md"), *(DOCS / "labs").glob("*.md")])
 LIB = [REPO / "st" / "ArmAngles.st", REPO / "st" / "Kinematics.st"]
