@@ -36,7 +36,7 @@ def robot(g: dict[str, float] = GEO) -> Any:
     ], tool=sm.SE3(g["WristLinkMm"], -g["ToolDropMm"], 0.0))
 
 
-def test_fk_matches_toolbox_mdh_model(st_module: Any) -> None:
+def test_fk_and_jacobian_match_toolbox_mdh_model(st_module: Any) -> None:
     r = robot()
     rng = np.random.default_rng(1)
     worst = 0.0
@@ -54,6 +54,11 @@ def test_fk_matches_toolbox_mdh_model(st_module: Any) -> None:
         assert np.abs(T[:3, :3] - ref[:3, :3]).max() < 1e-5
         Tc = np.array(st_module.call("ForwardKinematic_Chain", Chain=outs["Chain"], Joints=js))
         assert np.abs(Tc - T).max() < 1e-4
+        # jacob0 of the MDH model (mm per rad here: the model is in mm)
+        J = np.array(st_module.call("ChainJacobian", Chain=outs["Chain"], Joints=js))[:, :4]
+        Jr = r.jacob0(np.radians(q))
+        assert np.abs(J[:3] / 1000.0 - Jr[:3] / 1000.0).max() < 1e-5   # m per rad
+        assert np.abs(J[3:] - Jr[3:]).max() < 1e-5
     print(f"\n4-axis FK vs toolbox RevoluteMDH model: worst {worst:.2e} mm")
 
 
