@@ -93,10 +93,9 @@ def frames_figure(module: Any, out: Path) -> Path:
 
 def manipulability_grid(module: Any, step_deg: float = 3.0
                         ) -> tuple[NDArray[np.float64], NDArray[np.float64],
-                                   NDArray[np.float64], NDArray[np.float64]]:
-    """sigma_min and sqrt(det(J J^T)) of the planar 2-link arm's 2x2 position Jacobian (ST's
-    ChainJacobianPosition), over (q1 = 0, q2) -- they do not depend on q1 -- and the tool
-    points of a (q1, q2) grid for the workspace map."""
+                                   NDArray[np.float64]]:
+    """q2 (deg), sigma_min and sqrt(det(J J^T)) of the planar 2-link arm's 2x2 position
+    Jacobian (ST's ChainJacobianPosition) at q1 = 0 -- they do not depend on q1."""
     chain = two_link_chain()
     q2s = np.arange(-180.0, 180.0 + step_deg, step_deg)
     sig = np.zeros(len(q2s))
@@ -107,13 +106,13 @@ def manipulability_grid(module: Any, step_deg: float = 3.0
         s = np.linalg.svd(J / 1000.0, compute_uv=False)  # m per rad
         sig[i] = s.min()
         w[i] = s.prod()
-    return q2s, sig, w, np.array([], dtype=float)
+    return q2s, sig, w
 
 
 def jacobian_figure(module: Any, out: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    q2s, sig, w, _ = manipulability_grid(module)
+    q2s, sig, w = manipulability_grid(module)
     a1, a2 = (v / 1000.0 for v in TWO_LINK)
     fig, (left, right) = plt.subplots(1, 2, figsize=(11.0, 4.2))
     left.plot(q2s, w, label=r"$w=\sqrt{\det JJ^T}$ (ST Jacobian)")
