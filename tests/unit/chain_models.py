@@ -1,0 +1,80 @@
+"""Helpers for the kinematic-chain suites: Robotics Toolbox robots as KinematicChain dicts
+(st/KinematicsChain.st), and the reference models the tests compare with.
+
+The ST library works in mm and deg; the toolbox's Puma 560 is in metres and radians, so
+lengths are scaled by 1000 on the way in and the toolbox's linear results on the way out.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+MM_PER_M = 1000.0
+FIELDS = ("A", "AlphaDeg", "D", "ThetaOffsetDeg", "Prismatic", "LowerLimit", "UpperLimit")
+
+
+def empty_link() -> dict[str, Any]:
+    return {"A": 0.0, "AlphaDeg": 0.0, "D": 0.0, "ThetaOffsetDeg": 0.0, "Prismatic": False,
+            "LowerLimit": 0.0, "UpperLimit": 0.0}
+
+
+def chain_of(robot: Any, scale: float = 1.0, limits: bool = False,
+             tool: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> dict[str, Any]:
+    """A toolbox DHRobot as a KinematicChain dict; lengths times ``scale``.
+
+    Only the tool translation is carried over (the ST chain's tool is a point in the last
+    frame); pass it explicitly in the chain's units.
+    """
+    links = []
+    modified = bool(robot.mdh)
+    for link in robot.links:
+        prismatic = not link.isrevolute
+        entry = {
+            "A": float(link.a) * scale,
+            "AlphaDeg": math.degrees(link.alpha),
+            "D": float(link.d) * scale,
+            "ThetaOffsetDeg": math.degrees(link.theta) if prismatic else
+            math.degrees(link.offset),
+            "Prismatic": prismatic,
+            "LowerLimit": 0.0,
+            "UpperLimit": 0.0,
+        }
+        if prismatic:
+            entry["D"] = float(link.offset) * scale  # the toolbox adds its offset to q
+        if limits and link.qlim is not None:
+            lo, hi = (float(v) for v in link.qlim)
+            conv = scale if prismatic else math.degrees(1.0)
+            entry["LowerLimit"], entry["UpperLimit"] = lo * conv, hi * conv
+        links.append(entry)
+    while len(links) < 6:
+        links.append(empty_link())
+    return {"Links": links, "Count": robot.n, "Modified": modified,
+            "ToolX": tool[0], "ToolY": tool[1], "ToolZ": tool[2]}
+
+
+def joints_st(robot: Any, q: NDArray[np.float64], scale: float = 1.0) -> list[float]:
+    """Toolbox joint values (rad / m) as a JointVector (deg / mm), padded to six."""
+    out = [float(v) * scale if not link.isrevolute else math.degrees(float(v))
+           for v, link in zip(q, robot.links, strict=True)]
+    return out + [0.0] * (6 - len(out))
+
+
+def joints_rtb(robot: Any, joints: list[float], scale: float = 1.0) -> NDArray[np.float64]:
+    return np.array([v / scale if not link.isrevolute else math.radians(v)
+                     for v, link in zip(joints, robot.links, strict=False)])
+
+
+def pose_st(T: NDArray[np.float64], scale: float) -> list[list[float]]:
+    """A toolbox pose (4x4, metres) as a Mat4 in mm."""
+    out = np.array(T, dtype=float)
+    out[:3, 3] *= scale
+    return out.tolist()
+
+
+def rotation_angle_deg(Ra: NDArray[np.float64], Rb: NDArray[np.float64]) -> float:
+    c = (np.trace(Ra @ Rb.T) - 1.0) / 2.0
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
