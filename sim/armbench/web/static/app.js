@@ -87,6 +87,8 @@ function draw(state) {
                      at: performance.timeOrigin + performance.now() };
 }
 
+// Each snapshot is drawn when it arrives (the page's update rate is the server's); camera
+// moves redraw at most once per display frame.
 let pending = null;
 function frame() {
   if (pending) { draw(pending); pending = null; }
@@ -128,7 +130,7 @@ function update(s) {
   conn.textContent = s.connected ? "connected" : (s.error || "not connected");
   conn.className = "badge " + (s.connected ? "ok" : "bad");
   if (!s.connected) return;
-  pending = s;
+  draw(s);
   $("plcaddr").textContent = "Modbus " + s.plc_address;
   $("scancount").textContent = s.scan_count;
   $("scanhz").textContent = fmt(s.scan_hz, 1);
