@@ -65,7 +65,7 @@ def command_names() -> dict[int, str]:
 
 def _is_batch_area(name: str) -> bool:
     # the 32 batch targets and results: the register table shows them, the fast poll skips them
-    stem = name.rstrip("0123456789")
+    stem = name.upper().rstrip("0123456789")
     return stem != name and (stem.startswith("BATCH") and stem[-1] in "XYZ"
                              or stem.startswith("RES"))
 
@@ -170,6 +170,9 @@ class Monitor:
         self._full = _spans(self._cmap.values())
         self._coils = [r for r in self._cmap.values() if r.table == "coil"]
         self._discrete = [r for r in self._cmap.values() if r.table == "discrete"]
+        self._mbx_regs = [[(f, self._cmap[f"MBX{k:02d}{f}".upper()])
+                           for f in (*_CMD_FIELDS, *_ANS_FIELDS)]
+                          for k in range(1, MAILBOXES + 1)]
         self._results = result_names()
         self._commands = command_names()
         self._lock = threading.Lock()
@@ -376,9 +379,9 @@ class Monitor:
 
     def _mailboxes(self, words: dict[int, int]) -> list[dict[str, Any]]:
         out = []
-        for k in range(1, MAILBOXES + 1):
-            c = {f: self._val(f"Mbx{k:02d}{f}", words) for f in _CMD_FIELDS}
-            a = {f: int(self._val(f"Mbx{k:02d}{f}", words)) for f in _ANS_FIELDS}
+        for k, regs in enumerate(self._mbx_regs, start=1):
+            c = {f: decode(r, words) for f, r in regs}
+            a = {f: int(c[f]) for f in _ANS_FIELDS}
             code = int(c["Code"])
             session, seq = int(c["Session"]), int(c["Seq"])
             out.append({

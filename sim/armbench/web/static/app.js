@@ -9,7 +9,7 @@ const esc = (s) => String(s).replace(/[&<>"]/g, (c) => ({"&": "&amp;", "<": "&lt
 
 // What the tests and the bench read: frames drawn, messages received, the last drawn pose.
 const armbench = window.armbench = {
-  messages: 0, frames: 0, drawn: null, state: null, lastResult: null,
+  messages: 0, frames: 0, busyMs: 0, drawn: null, state: null, lastResult: null, history: [],
 };
 
 // ---- camera and projection -------------------------------------------------------------
@@ -71,7 +71,12 @@ function draw(state) {
     if (!last || Math.hypot(tool[0] - last[0], tool[1] - last[1], tool[2] - last[2]) > 0.5) {
       trail.push(tool); if (trail.length > 400) trail.shift();
     }
-    for (let i = 0; i + 1 < trail.length; i++) line(trail[i], trail[i + 1], "#9fb8d0", 1);
+    if (trail.length > 1) {                    // one path: 400 strokes would cost a frame
+      ctx.strokeStyle = "#9fb8d0"; ctx.lineWidth = 1; ctx.setLineDash([]);
+      ctx.beginPath();
+      trail.forEach((p, i) => { const q = project(p); if (i) ctx.lineTo(q[0], q[1]); else ctx.moveTo(q[0], q[1]); });
+      ctx.stroke();
+    }
     drawArm(pts.plant, "#2f5d8a", 7);
   }
   if (pts.plc) drawArm(pts.plc, "#e8710a", 2.5, [7, 5]);
@@ -83,8 +88,11 @@ function draw(state) {
   canvas.dataset.plantJoints = (j.plant || []).join(",");
   canvas.dataset.seq = state.seq;
   armbench.frames += 1;
-  armbench.drawn = { seq: state.seq, plc: j.plc, plant: j.plant,
+  // `at` and the snapshot's `t` (when the server read the PLC) are epoch ms / s
+  armbench.drawn = { seq: state.seq, plc: j.plc, plant: j.plant, t: state.t,
                      at: performance.timeOrigin + performance.now() };
+  armbench.history.push(armbench.drawn);
+  if (armbench.history.length > 256) armbench.history.shift();
 }
 
 // Each snapshot is drawn when it arrives (the page's update rate is the server's); camera
@@ -130,7 +138,18 @@ function update(s) {
   conn.textContent = s.connected ? "connected" : (s.error || "not connected");
   conn.className = "badge " + (s.connected ? "ok" : "bad");
   if (!s.connected) return;
+  const t0 = performance.now();
   draw(s);
+  updateJoints(s);
+  // The tables below change the layout; at 10 Hz they cost the drawing no frames.
+  if (now - lastTables >= 100) { lastTables = now; updateTables(s); }
+  armbench.busyMs += performance.now() - t0;
+}
+
+let lastTables = -1e9;
+let shownEvent = -1;
+
+function updateHeader(s) {
   $("plcaddr").textContent = "Modbus " + s.plc_address;
   $("scancount").textContent = s.scan_count;
   $("scanhz").textContent = fmt(s.scan_hz, 1);
@@ -141,12 +160,20 @@ function update(s) {
   const cs = $("ctlstate");
   cs.textContent = c.state + (c.busy_mailbox ? ` (mailbox ${c.busy_mailbox})` : "");
   cs.className = "badge " + (c.state === "Ready" ? "ok" : "warn");
+}
+
+function updateJoints(s) {
   const jt = s.joints, ch = s.channels;
   $("joints").tBodies[0].innerHTML = ["Base", "Shoulder", "Elbow"].map((name, i) =>
     `<tr><td class="l">${name}</td><td>${fmt(jt.plc[i])}</td><td>${fmt(jt.plant[i])}</td>` +
     `<td>${fmt(ch[i].plc_pulse_us, 1)}</td><td>${ch[i].full_off ? "off" : ch[i].count}</td>` +
     `<td>${fmt(ch[i].plant_pulse_us, 1)}</td><td>${fmt(ch[i].servo_deg)}</td></tr>`).join("");
   $("echo").textContent = s.echo.map((v) => fmt(v, 2)).join(", ");
+}
+
+function updateTables(s) {
+  updateHeader(s);
+  const ch = s.channels, plc = s.plc, c = s.controller;
   $("channels").tBodies[0].innerHTML = ch.map((r) =>
     `<tr><td>${r.channel}</td><td class="l">${esc(r.joint)}</td><td>0x${r.word.toString(16).padStart(4, "0")}</td>` +
     `<td>${r.count}</td><td>${r.full_off ? "yes" : ""}</td></tr>`).join("");
@@ -175,6 +202,9 @@ function update(s) {
     ["PwmDriverReady / Fault (%IX0.0/0.1)", `${c.PwmDriverReady ? "TRUE" : "FALSE"} / ${c.PwmDriverFault ? "TRUE" : "FALSE"}`],
     ["batch owner / count / failures", `${c.batch_owner} / ${c.batch_count} / ${c.batch_failures}`],
     ["plant PCA9685", s.plant.pca_running ? `running ${fmt(s.plant.update_rate_hz, 2)} Hz` : "not running (send Init PWM)"]]);
+  const lastEvent = s.events.length ? s.events[s.events.length - 1].id : 0;
+  if (lastEvent === shownEvent) return;
+  shownEvent = lastEvent;
   $("events").innerHTML = s.events.slice().reverse().map((e) =>
     `<li class="${e.kind}">${new Date(e.t * 1000).toLocaleTimeString()} ${esc(e.text)}</li>`).join("");
 }
