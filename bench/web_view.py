@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import statistics
 import sys
@@ -98,8 +99,8 @@ def screenshot(page: Page, ctl: ArmControllerClient, web: WebView, path: Path) -
     page.wait_for_function("document.getElementById('cmdmsg').className === 'error'")
     page.fill(f"{form} input[name=x]", "150")
     page.fill(f"{form} input[name=z]", "120")
-    page.fill("#regfilter", "Deg")
     time.sleep(1.5)
+    page.evaluate("window.scrollTo(0, 0)")  # fill() scrolled the form into view
     path.parent.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(path))
 
@@ -134,8 +135,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"screenshot: {a.screenshot}")
         browser.close()
         stats = next(iter(_stats(running).values()))
+    load = os.getloadavg()
     print(f"live view, chromium headless, soft PLC 10 ms task ({stats}); "
-          f"{a.samples} MoveJoints writes per rate")
+          f"{a.samples} MoveJoints writes per rate; load average {load[0]:.1f} on "
+          f"{os.cpu_count()} CPUs")
     print(f"{'rate Hz':>8} {'polls/s':>8} {'msgs/s':>7} {'frames/s':>9} {'write->draw ms':>24} "
           f"{'write->read':>12} {'read->draw ms':>14}")
     print(f"{'':>8} {'':>8} {'':>7} {'':>9} {'p50    p95    max':>24} {'p50':>12} "
