@@ -27,7 +27,7 @@ from armbench.plant import arm
 from armbench.registermap import controller_constants, controller_map
 from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
-from armbench.web.app import WebView, exposure_warning
+from armbench.web.app import WS_WINDOW, WebView, exposure_warning
 from armbench.web.commands import COMMANDS, CommandSpec, CommandTable, Field
 
 PWM_STEP_DEG = 0.6  # one 12-bit count is 4.88 us, 0.59 deg of MG996R travel
@@ -216,10 +216,22 @@ def test_register_table(web: WebView, running: RunningPlc) -> None:
     assert isinstance(rows["PwmDriverReady"]["value"], bool)
 
 
-def test_websocket_pushes_every_poll(web: WebView) -> None:
+def test_websocket_sends_new_snapshots_within_its_window(web: WebView) -> None:
     with connect(web.url.replace("http", "ws") + "ws", open_timeout=10) as ws:
-        seqs = [json.loads(ws.recv(timeout=5))["seq"] for _ in range(10)]
-    assert seqs == sorted(seqs) and seqs[-1] > seqs[0]
+        seqs = []
+        for _ in range(10):
+            seqs.append(json.loads(ws.recv(timeout=5))["seq"])
+            ws.send("drawn")
+        assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)  # each one newer
+        # a page that stops acknowledging gets at most WS_WINDOW more, then nothing
+        extra = 0
+        with pytest.raises(TimeoutError):
+            while True:
+                ws.recv(timeout=0.5)
+                extra += 1
+        assert 1 <= extra <= WS_WINDOW
+        ws.send("drawn")
+        assert json.loads(ws.recv(timeout=5))["seq"] > seqs[-1]
 
 
 def test_plc_fault_shows(monkeypatch: pytest.MonkeyPatch) -> None:

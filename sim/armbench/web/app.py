@@ -1,12 +1,12 @@
 """The live view's web server: a Starlette app served by uvicorn.
 
 Routes: ``/`` the page (static files shipped in the package), ``/api/state`` the latest
-snapshot, ``/api/registers`` the register table, ``/api/commands`` the command table,
-``POST /api/command`` one command, and ``/ws`` a WebSocket that pushes every snapshot as it
-is polled. Commands go to the PLC through :class:`ArmControllerClient` over Modbus TCP (its
-own connection and mailbox, the same handshake as any client); the page never writes a
-register any other way. One command runs at a time; bad input is answered 400 with a message
-and never reaches the PLC.
+snapshot, ``/api/registers`` the register table, ``/api/commands`` the command table, ``POST
+/api/command`` one command, and ``/ws`` a WebSocket that sends each new snapshot as it is
+polled, with at most :data:`WS_WINDOW` not yet acknowledged by the page. Commands go to the
+PLC through :class:`ArmControllerClient` over Modbus TCP (its own connection and mailbox,
+the same handshake as any client); the page never writes a register any other way. One
+command runs at a time; bad input is answered 400 with a message and never reaches the PLC.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import ipaddress
-import json
 import socket
 import threading
 import time
@@ -39,6 +38,7 @@ from .commands import BadInput, CommandTable, Outcome, run
 from .monitor import Monitor, _finite
 
 STATIC = Path(__file__).resolve().parent / "static"
+WS_WINDOW = 8  # snapshots sent and not yet acknowledged by the page
 
 
 @dataclass
@@ -167,13 +167,30 @@ def make_app(monitor: Monitor, commander: Commander) -> Starlette:
 
     async def ws(websocket: WebSocket) -> None:
         await websocket.accept()
+        # At most WS_WINDOW snapshots in flight: the page acknowledges each one it has drawn.
+        # Pushing every poll regardless would queue stale snapshots in socket buffers whenever
+        # the page is slower than the server; waiting for each acknowledgement would make
+        # the update rate one round trip. The queue holds only the newest snapshot.
+        credit = asyncio.Semaphore(WS_WINDOW)
+
+        async def acknowledgements() -> None:
+            while True:
+                await websocket.receive_text()
+                credit.release()
+
         async with broadcast.listen() as queue:
+            acks = asyncio.create_task(acknowledgements())
             try:
-                await websocket.send_text(_snapshot_text(monitor))
-                while True:
+                while not acks.done():
+                    try:
+                        await asyncio.wait_for(credit.acquire(), timeout=0.5)
+                    except TimeoutError:
+                        continue  # look again whether the page is still there
                     await websocket.send_text(await queue.get())
             except (WebSocketDisconnect, RuntimeError):
                 return
+            finally:
+                acks.cancel()
 
     return Starlette(routes=[
         Route("/", index),
@@ -197,10 +214,6 @@ def exposure_warning(host: str, port: int) -> str | None:
     return (f"the live view on {host}:{port} is reachable from other hosts, and anyone who "
             "reaches it can move the arm (no authentication); bind 127.0.0.1 (the default) "
             "unless the network is isolated and trusted")
-
-
-def _snapshot_text(monitor: Monitor) -> str:
-    return json.dumps(monitor.snapshot(), allow_nan=False)
 
 
 class WebView:

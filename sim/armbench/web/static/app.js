@@ -212,7 +212,11 @@ function updateTables(s) {
 // ---- WebSocket ------------------------------------------------------------------------------
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
-  ws.onmessage = (ev) => { armbench.messages += 1; update(JSON.parse(ev.data)); };
+  ws.onmessage = (ev) => {
+    armbench.messages += 1;
+    update(JSON.parse(ev.data));
+    ws.send("drawn");  // flow control: the server keeps at most a few snapshots in flight
+  };
   ws.onclose = () => {
     const conn = $("conn");
     conn.textContent = "web server gone: reconnecting"; conn.className = "badge bad";
