@@ -61,6 +61,7 @@ class Commander:
             self._client = ArmControllerClient(self._plc, timeout_s=self.timeout_s,
                                                poll_interval_s=0.001)
             self.table.batch_max = self._client.batch_max
+            self.monitor.quiet_sessions.add(self._client.session)  # execute() reports them
         return self._client
 
     def execute(self, name: object, values: object) -> dict[str, Any]:

@@ -191,6 +191,8 @@ class Monitor:
         self._poll_hist: deque[float] = deque(maxlen=200)
         self.polls = 0
         self.poll_errors = 0
+        # sessions whose results are reported by their sender (the view's own commands)
+        self.quiet_sessions: set[int] = set()
 
     # -- public ---------------------------------------------------------------------------
 
@@ -401,7 +403,7 @@ class Monitor:
         answers = [(m["ack_seq"], m["ack_check"], m["result"]) for m in mailboxes]
         if self._last_answers is not None:
             for m, old, new in zip(mailboxes, self._last_answers, answers, strict=True):
-                if new != old and new[2] != 0:
+                if new != old and new[2] != 0 and m["session"] not in self.quiet_sessions:
                     who = m["owner"] or "closed"
                     cmd = m["command"] if m["seq"] == m["ack_seq"] else ""
                     self.event("fault", f"mailbox {m['mailbox']} (session {who}): seq "

@@ -168,7 +168,7 @@ function updateJoints(s) {
     `<tr><td class="l">${name}</td><td>${fmt(jt.plc[i])}</td><td>${fmt(jt.plant[i])}</td>` +
     `<td>${fmt(ch[i].plc_pulse_us, 1)}</td><td>${ch[i].full_off ? "off" : ch[i].count}</td>` +
     `<td>${fmt(ch[i].plant_pulse_us, 1)}</td><td>${fmt(ch[i].servo_deg)}</td></tr>`).join("");
-  $("echo").textContent = s.echo.map((v) => fmt(v, 2)).join(", ");
+  $("echo").textContent = s.echo.map((v) => v === null ? "-" : v.toFixed(2)).join(", ");
 }
 
 function updateTables(s) {
