@@ -7,7 +7,9 @@ targets; for each, the latency runs from just before its FC16 write (wall clock)
 frame the page drew with the new PLC joints (the page's own clock, performance.timeOrigin +
 performance.now(): the same machine's wall clock), split at the server's read of the PLC that
 first saw them. The update rate is frames drawn per second, counted in the page over a few
-seconds. Each configured rate (--rates) is measured in the same run. Prints figures; not a
+seconds. A Python WebSocket client then reads the same stream for as long: how fast the server
+alone delivers (its share of the latency). Each configured rate (--rates) is measured in the
+same run. Prints figures; not a
 test. With --screenshot PATH it also saves a picture of the page after a short drive (the one
 in docs/web-view.md comes from `--screenshot docs/figures/web-view.png`).
 
@@ -17,6 +19,7 @@ in docs/web-view.md comes from `--screenshot docs/figures/web-view.png`).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import shutil
@@ -31,6 +34,7 @@ except ImportError:  # running from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
     from armbench.controller_client import ArmControllerClient
 from playwright.sync_api import Page, sync_playwright
+from websockets.sync.client import connect
 
 from armbench.controller_client import CMD_MOVE_JOINTS
 from armbench.demo import RunningPlc, circle, serve_controller
@@ -83,6 +87,19 @@ def measure(page: Page, ctl: ArmControllerClient, web: WebView, samples: int,
             "page_p50": statistics.median(to_page), "page_p95": pct(to_page, 95)}
 
 
+def server_side(web: WebView, seconds: float) -> dict[str, float]:
+    """The same stream read by a Python WebSocket client: the server's share of the time."""
+    lat: list[float] = []
+    with connect(web.url.replace("http", "ws") + "ws", open_timeout=10) as ws:
+        t0 = time.time()
+        while time.time() - t0 < seconds:
+            snap = json.loads(ws.recv(timeout=5))
+            lat.append((time.time() - snap["t"]) * 1000.0)
+            ws.send("drawn")
+    return {"ws_hz": len(lat) / seconds, "ws_p50": statistics.median(lat),
+            "ws_p95": pct(lat, 95)}
+
+
 def screenshot(page: Page, ctl: ArmControllerClient, web: WebView, path: Path) -> None:
     page.goto(web.url)
     page.wait_for_function("window.armbench.frames > 5", timeout=20000)
@@ -127,7 +144,10 @@ def main(argv: list[str] | None = None) -> int:
             for rate in a.rates:
                 with WebView(running.host, running.port, web_port=0, rate_hz=rate,
                              local_plc=running.plc) as web:
-                    rows.append((rate, measure(page, ctl, web, a.samples, a.seconds)))
+                    r = measure(page, ctl, web, a.samples, a.seconds)
+                    page.goto("about:blank")  # the Python client alone, next
+                    r.update(server_side(web, a.seconds))
+                    rows.append((rate, r))
             if a.screenshot is not None:
                 with WebView(running.host, running.port, web_port=0,
                              local_plc=running.plc) as web:
@@ -139,14 +159,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"live view, chromium headless, soft PLC 10 ms task ({stats}); "
           f"{a.samples} MoveJoints writes per rate; load average {load[0]:.1f} on "
           f"{os.cpu_count()} CPUs")
-    print(f"{'rate Hz':>8} {'polls/s':>8} {'msgs/s':>7} {'frames/s':>9} {'write->draw ms':>24} "
-          f"{'write->read':>12} {'read->draw ms':>14}")
-    print(f"{'':>8} {'':>8} {'':>7} {'':>9} {'p50    p95    max':>24} {'p50':>12} "
-          f"{'p50    p95':>14}")
+    print(f"{'rate Hz':>8} {'polls/s':>8} {'frames/s':>9} {'write->draw ms':>24} "
+          f"{'write->read':>12} {'read->draw ms':>14} | {'Python ws client':>24}")
+    print(f"{'':>8} {'':>8} {'':>9} {'p50    p95    max':>24} {'p50':>12} "
+          f"{'p50    p95':>14} | {'msgs/s  read->recv p50 p95':>24}")
     for rate, r in rows:
-        print(f"{rate:8g} {r['poll_hz']:8.1f} {r['messages_hz']:7.1f} {r['frames_hz']:9.1f} "
+        print(f"{rate:8g} {r['poll_hz']:8.1f} {r['frames_hz']:9.1f} "
               f"{r['lat_p50']:10.1f} {r['lat_p95']:6.1f} {r['lat_max']:6.1f} "
-              f"{r['srv_p50']:12.1f} {r['page_p50']:7.1f} {r['page_p95']:6.1f}")
+              f"{r['srv_p50']:12.1f} {r['page_p50']:7.1f} {r['page_p95']:6.1f} | "
+              f"{r['ws_hz']:6.1f} {r['ws_p50']:12.1f} {r['ws_p95']:5.1f}")
     return 0
 
 
