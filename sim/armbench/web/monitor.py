@@ -292,6 +292,9 @@ class Monitor:
                 values = read(first, max(r.address for r in regs) - first + 1)
                 bits.update({r.name: values[r.address - first] for r in regs})
         v = self._val
+        scan_count = int(v("ScanCount", words))
+        if scan_count == 0:
+            return  # the program has not written its outputs yet: nothing to show or mount
         cals = [Calibration(*(v(f"{j}Cal{f}", words) for f in _CAL_FIELDS)) for j in JOINTS]
         cals = [Calibration(c.zero_offset_deg, int(c.direction), *map(float, (
             c.min_pulse_us, c.max_pulse_us, c.min_angle_deg, c.max_angle_deg))) for c in cals]
@@ -308,7 +311,6 @@ class Monitor:
         self._events_from(mailboxes, bits)
         joints_plc = tuple(float(v(f"{j}Deg", words)) for j in JOINTS)
         joints_plant = self._plant.joints()
-        scan_count = int(v("ScanCount", words))
         self._scan_hist.append((time.monotonic(), scan_count))
         self._poll_hist.append(time.monotonic())
         self.polls += 1
