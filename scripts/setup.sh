@@ -14,6 +14,16 @@ if ((${#need_apt[@]})); then
     exit 1
   fi
 fi
+# The live view's browser test drives Debian's chromium (Playwright never downloads a browser
+# here); without it that test skips, saying why, so it is installed only where apt-get can.
+if ! command -v chromium >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    (apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium) \
+      || echo "setup: could not install chromium: the browser test of the live view will skip" >&2
+  else
+    echo "setup: chromium is missing (Debian: sudo apt-get install --no-install-recommends chromium): the browser test of the live view will skip" >&2
+  fi
+fi
 if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv
 fi

@@ -47,6 +47,14 @@ def positive_length(text: str) -> float:
     return value
 
 
+def update_rate(text: str) -> float:
+    """An update rate in Hz, 1..1000."""
+    value = _float(text)
+    if not 1.0 <= value <= 1000.0:
+        raise argparse.ArgumentTypeError(f"must be 1..1000 Hz, got {text}")
+    return value
+
+
 def _int(text: str) -> int:
     try:
         return int(text)

@@ -37,6 +37,7 @@ if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
     from .softplc.loader import LoadedProgram
     from .softplc.modbus_server import ModbusServer
     from .softplc.scan import SoftPlc
+    from .web.app import WebView
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
@@ -169,7 +170,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
     from .softplc.scan import SoftPlc
 
-    prog = load_program(_files(args))
+    # Without files: the armbench library and the controller (what --web knows how to show).
+    prog = load_program(_files(args) if args.files else default_project().sources())
     plc = SoftPlc(prog)
     server = ModbusServer(
         prog.image, plc.lock, host=args.host, port=args.port,
@@ -200,6 +202,13 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
     print(f"serving Modbus TCP on {args.host}:{server.port}; tasks: "
           + ", ".join(f"{t.name} every {t.interval_ns / 1e6:g} ms" for t in prog.tasks),
           flush=True)
+    web = None
+    if args.web:
+        web = _start_web(args, plc, server)
+        if web is None:
+            plc.stop()
+            server.stop()
+            return EXIT_FAIL
     deadline = None if args.duration is None else time.monotonic() + args.duration
     reported = False
     try:
@@ -212,9 +221,34 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
     except KeyboardInterrupt:
         pass
     finally:
+        if web is not None:
+            web.stop()
         plc.stop()
         server.stop()
     return EXIT_FAIL if plc.fault is not None else EXIT_OK
+
+
+def _start_web(args: argparse.Namespace, plc: SoftPlc, server: ModbusServer) -> WebView | None:
+    """The live view, a Modbus client of the server just started (None: could not listen)."""
+    from .web.app import WebView, exposure_warning
+
+    # The view talks to the PLC like any client: over Modbus, on the loopback when the
+    # server listens on every address.
+    plc_host = "127.0.0.1" if args.host in ("0.0.0.0", "") else "::1" if args.host == "::" \
+        else args.host
+    try:
+        web = WebView(plc_host, server.port, web_host=args.web_host, web_port=args.web_port,
+                      rate_hz=args.web_rate, local_plc=plc)
+    except OSError as exc:
+        print(f"armbench: error: cannot listen on {args.web_host}:{args.web_port} for the "
+              f"web view: {exc.strerror}", file=sys.stderr)
+        return None
+    warning = exposure_warning(args.web_host, web.port)
+    if warning is not None:
+        print(f"armbench: warning: {warning}", file=sys.stderr)
+    web.start()
+    print(f"live view on {web.url} (updates at {args.web_rate:g} Hz)", flush=True)
+    return web
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -281,8 +315,10 @@ def make_parser() -> argparse.ArgumentParser:
                    help="scans of the fastest task (1)")
     r.add_argument("--dump", action="store_true", help="print program variables as JSON")
     r.set_defaults(func=cmd_run)
-    s = sub.add_parser("serve", help="run in real time and serve Modbus TCP")
-    s.add_argument("files", nargs="+")
+    s = sub.add_parser("serve", help="run in real time and serve Modbus TCP (--web: and the "
+                       "live view in a browser)")
+    s.add_argument("files", nargs="*", help=".st files or folders (default: the armbench "
+                   "library and plc_project/Controller.st)")
     _library_option(s)
     s.add_argument("--host", default="127.0.0.1")
     s.add_argument("--port", type=argtypes.port, default=5020, help="0..65535 (5020; 0: any)")
@@ -294,6 +330,15 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-clients", type=argtypes.positive_count, default=None, metavar="N",
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")
+    s.add_argument("--web", action="store_true",
+                   help="also serve the live view (arm in 3-D, registers, commands) over HTTP; "
+                   "it is a Modbus client of this PLC and knows the controller's register map")
+    s.add_argument("--web-host", default="127.0.0.1", help="address of the live view "
+                   "(127.0.0.1)")
+    s.add_argument("--web-port", type=argtypes.port, default=8080,
+                   help="port of the live view, 0..65535 (8080; 0: any)")
+    s.add_argument("--web-rate", type=argtypes.update_rate, default=50.0, metavar="HZ",
+                   help="updates per second of the live view, 1..1000 (50)")
     s.set_defaults(func=cmd_serve)
     x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML of a "
                        "program (with the library) into --out, or regenerate the "

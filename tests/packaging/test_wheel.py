@@ -3,8 +3,9 @@
 Builds the wheel from a copy of the build inputs, installs it into a fresh virtual
 environment and, from a temporary folder that is no checkout, runs `armbench check` (the
 packaged library and a user's cp1252 file), `armbench run`, `armbench serve` (read over
-Modbus), `armbench export --out`, and a small pytest suite using the plugin's `plc` fixture
-against the packaged controller. Values are checked against math (pi), the numpy reference
+Modbus), `armbench serve --web` (the live view's page from the wheel), `armbench export
+--out`, and a small pytest suite using the plugin's `plc` fixture against the packaged
+controller. Values are checked against math (pi), the numpy reference
 kinematics and the repository's own files.
 
 Needs PyPI or pip's cache (setuptools for the build, the pinned dependencies for the
@@ -24,6 +25,7 @@ import subprocess
 import sys
 import time
 import tomllib
+import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -263,3 +265,49 @@ def test_pytest_plugin_against_the_packaged_controller(installed: Installed,
                          "-p", "no:cacheprovider", user_suite.name)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
     assert re.search(r"\b2 passed\b", proc.stdout), proc.stdout
+
+
+def test_web_view_from_the_installed_package(installed: Installed) -> None:
+    """`armbench serve --web` outside the checkout: the page and its scripts come from the
+    wheel (byte for byte the repository's), and a command sent from the page's API moves the
+    PLC's joints to the numpy reference IK."""
+    static = installed.site / "armbench" / "web" / "static"
+    repo_static = REPO / "sim" / "armbench" / "web" / "static"
+    assert sorted(p.name for p in static.iterdir()) == sorted(
+        p.name for p in repo_static.iterdir())
+    proc = subprocess.Popen([str(installed.venv / "bin" / "armbench"), "serve", "--web",
+                             "--port", "0", "--web-port", "0", "--duration", "60"],
+                            cwd=installed.work, env=installed.env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline(), proc.stdout.readline()]
+        m = re.search(r"live view on (http://127\.0\.0\.1:\d+/)", lines[1])
+        assert m, "".join(lines) + (proc.stderr.read() if proc.stderr else "")
+        url = m.group(1)
+        for path in ("", "static/app.js", "static/style.css"):
+            with urllib.request.urlopen(url + path, timeout=10) as r:
+                name = "index.html" if path == "" else path.split("/")[-1]
+                assert r.read() == (repo_static / name).read_bytes(), path
+        deadline = time.monotonic() + 20.0
+        while not json.load(urllib.request.urlopen(url + "api/state", timeout=10))["connected"]:
+            assert time.monotonic() < deadline, "the view never polled the PLC"
+            time.sleep(0.1)
+        req = urllib.request.Request(
+            url + "api/command", json.dumps({"name": "CmdMoveXyz", "fields": {
+                "x": 150, "y": 0, "z": 120}}).encode(), {"Content-Type": "application/json"})
+        with urllib.request.urlopen(req, timeout=20) as r:
+            assert json.load(r)["result"] == 0
+        from armbench.plant import arm
+
+        expected = arm.inverse(150.0, 0.0, 120.0)
+        while True:
+            joints = json.load(urllib.request.urlopen(url + "api/state", timeout=10))[
+                "joints"]["plc"]
+            if joints == pytest.approx(expected, abs=1e-3):
+                break
+            assert time.monotonic() < deadline, joints
+            time.sleep(0.05)
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

@@ -1,0 +1,1 @@
+"""The live view of `armbench serve --web`: monitor (Modbus poll + plant), commands, web app."""
