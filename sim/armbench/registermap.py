@@ -27,8 +27,8 @@ from .softplc import modbus_map as mm
 
 # The program the tools use (the wheel's copy, or the checkout's: armbench.locate).
 _PROJECT = default_project()
-LIBRARY_FILES = tuple(_PROJECT.st_dir / n for n in
-                      ("ArmAngles.st", "Kinematics.st", "MG996R.st", "PCA9685.st"))
+# The whole library: the controller uses the motion blocks and the output stage too.
+LIBRARY_FILES = tuple(_PROJECT.library())
 CONTROLLER = _PROJECT.controller
 SOURCES = (*LIBRARY_FILES, CONTROLLER)
 # The page lives in the repository only; None for an installed package (main() then looks
@@ -231,7 +231,7 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "`armbench.controller_client.ArmControllerClient` implements the client side.",
         "",
         "```text",
-        *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "RESULT CODES")),
+        *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "MOTION", "RESULT CODES")),
         "```",
         "",
         *_example({r.name.upper(): r for r in regs}),
@@ -259,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except LocateError as exc:
         print(f"python -m armbench.registermap: {exc}", file=sys.stderr)
         return 2
-    sources = [*(checkout.st_dir / p.name for p in LIBRARY_FILES), checkout.controller]
+    sources = [*checkout.library(), checkout.controller]
     target = Path(args[0]) if args else checkout.root / "docs" / "register-map.md"
     target.write_text(render_markdown(derive(sources)), encoding="utf-8")
     print(f"wrote {target}")
