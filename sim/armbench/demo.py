@@ -140,12 +140,13 @@ class PathRun:
 def drive_path(ctl: ArmControllerClient, plant: Plant,
                points: Sequence[tuple[float, float, float]],
                progress: Callable[[int, int], None] | None = None) -> PathRun:
-    """One MoveXyz per point (handshake), then the plant: PCA9685 words -> pulses -> servo
-    angles -> reference FK. Rejected points are counted and skipped."""
+    """One MoveXyz per point (handshake), waiting until the motion layer has moved the
+    servos there, then the plant: PCA9685 words -> pulses -> servo angles -> reference FK.
+    Rejected points are counted and skipped."""
     run = PathRun()
     t_start = time.perf_counter()
     for i, p in enumerate(points, start=1):
-        st = ctl.move_xyz(*p)
+        st = ctl.move_xyz(*p, wait=True)
         if st.error_id != 0:
             run.rejected += 1
             continue

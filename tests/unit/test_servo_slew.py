@@ -249,3 +249,34 @@ def test_bad_parameters(st_module: Any, field: str, value: float) -> None:
     check_bounds(lim.out, [[VMAX_DEFAULT * DT] * 3] * rows,
                  [[AMAX_DEFAULT * DT * DT] * 3] * rows, 3)
     assert all(math.isfinite(x) for row in lim.out for x in row)
+
+
+def trapezoid(d: float, v: float, a: float, t: float) -> float:
+    """Closed-form rest-to-rest trapezoid (triangle when short): position at time t."""
+    ta = min(v / a, math.sqrt(d / a))
+    vp = a * ta
+    tc = (d - a * ta * ta) / vp if vp > 0 else 0.0
+    if t <= ta:
+        return 0.5 * a * t * t
+    if t <= ta + tc:
+        return 0.5 * a * ta * ta + vp * (t - ta)
+    td = min(t - ta - tc, ta)
+    return 0.5 * a * ta * ta + vp * tc + vp * td - 0.5 * a * td * td
+
+
+@pytest.mark.parametrize("d,v,a", [(90.0, 120.0, 800.0), (3.0, 120.0, 800.0),
+                                   (-45.0, 149.0, 990.0)])
+def test_feasible_moving_command_is_followed_without_lag(st_module: Any, d: float, v: float,
+                                                         a: float) -> None:
+    """A plan within the limits (a motion block's) passes through unchanged, every scan."""
+    lim = Limiter(st_module, joints=1)
+    lim.step([20.0], reset=True)
+    sign, dist = math.copysign(1.0, d), abs(d)
+    total = closed_form_time(dist, v, a)
+    worst = 0.0
+    for k in range(1, int(total / DT) + 20):
+        cmd = float(np.float32(20.0 + sign * trapezoid(dist, v, a, min(k * DT, total))))
+        lim.step([cmd])
+        worst = max(worst, abs(lim.out[-1][0] - cmd))
+    assert worst <= 1e-4
+    assert lim.out[-1][0] == np.float32(20.0 + d)
