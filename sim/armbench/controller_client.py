@@ -898,6 +898,10 @@ class MotionRecorder:
         if self._thread is not None:
             self.stop()
 
+    @property
+    def recording(self) -> bool:
+        return self._thread is not None
+
     def start(self) -> None:
         if self._thread is not None:
             raise RuntimeError("MotionRecorder.start: already recording")
