@@ -59,9 +59,16 @@ def test_jog_stops_at_the_workspace_boundary(st_module: Any) -> None:
     sim = start(lower=-360.0, upper=360.0, max_vel=500.0)
     fb = st_module.new_fb("MotionJog")
     p0 = arm.forward(*sim.start)
+    at_limit = []
     for _ in range(400):
         sim.scan(fb, **jog_inputs((1.0, 0.0, 0.0)))
+        at_limit.append(bool(fb.AtLimit))
     assert fb.Busy and fb.AtLimit and not fb.Error
+    # once it brakes for the boundary (same command) the speed only goes down: no chatter
+    first = at_limit.index(True)
+    assert all(at_limit[first:])
+    speed = np.linalg.norm(cart_velocities(sim, p0), axis=1)
+    assert np.all(np.diff(speed[first:]) <= 1e-3)
     pts = np.array(sim.cartesian)
     cp = [arm.shoulder_distance(*p) for p in pts]
     low, high = arm.reach_limits()
