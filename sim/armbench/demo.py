@@ -6,11 +6,11 @@ calibration is read back from the PLC (one copy of the zero offsets: the program
 path is first checked with SolveBatch commands (32 points per scan), then driven with one
 MoveXyz per point (request/acknowledge handshake): the motion layer turns each into a
 synchronised joint move through the slew-limited output stage, and the client waits for it to
-end; a recorder samples the setpoints every scan for the velocity plot. Each point's 16 PCA9685 words go into the
-PCA9685 device model, its pulse widths into three MG996R servo models, and the settled servo
-angles through the numpy reference kinematics: the achieved tool position, compared with the
-commanded one (the difference includes the 12-bit PWM quantisation). Plots of the run go to
-``--out`` (default ``out/demo``) as PNGs.
+end; a recorder samples the setpoints every scan for the velocity plot. Each point's 16
+PCA9685 words go into the PCA9685 device model, its pulse widths into three MG996R servo
+models, and the settled servo angles through the numpy reference kinematics: the achieved tool
+position, compared with the commanded one (the difference includes the 12-bit PWM
+quantisation). Plots of the run go to ``--out`` (default ``out/demo``) as PNGs.
 """
 
 from __future__ import annotations
