@@ -20,6 +20,7 @@ mid-command is reopened and the command followed up the same way. What cannot be
 from __future__ import annotations
 
 import random
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -45,6 +46,18 @@ CMD_HELLO = _K["CmdHello"]
 CMD_LUT_SOLVE = _K["CmdLutSolve"]
 CMD_LUT_MOVE_XYZ = _K["CmdLutMoveXyz"]
 CMD_LUT_SOLVE_BATCH = _K["CmdLutSolveBatch"]
+CMD_MOVE_JOINTS_PROFILE = _K["CmdMoveJointsProfile"]
+CMD_MOVE_LINEAR = _K["CmdMoveLinear"]
+CMD_JOG_START = _K["CmdJogStart"]
+CMD_JOG_UPDATE = _K["CmdJogUpdate"]
+CMD_JOG_STOP = _K["CmdJogStop"]
+CMD_STOP = _K["CmdStop"]
+CMD_SET_MOTION_LIMITS = _K["CmdSetMotionLimits"]
+KIND_JOINT = _K["KindJoint"]
+KIND_LINE = _K["KindLine"]
+KIND_JOG = _K["KindJog"]
+KIND_STOP = _K["KindStop"]
+JOG_DEADMAN_SCANS = _K["JogDeadmanScans"]
 
 ERR_OK = _K["Err.NoError"]
 ERR_UNREACHABLE = _K["Err.Unreachable"]
@@ -59,6 +72,9 @@ ERR_BUSY = _K["CtlErr.Busy"]
 ERR_BAD_SEQUENCE = _K["CtlErr.BadSequence"]
 ERR_BAD_CHECK = _K["CtlErr.BadCheck"]
 ERR_NOT_BATCH_OWNER = _K["CtlErr.NotBatchOwner"]
+ERR_NOT_MOTION_OWNER = _K["CtlErr.NotMotionOwner"]
+ERR_JOG_TIMEOUT = _K["CtlErr.JogTimeout"]
+ERR_BAD_PARAMETER = _K["Err.BadParameter"]
 
 STATE_READY = _K["StateReady"]
 STATE_BUSY = _K["StateBusy"]
@@ -79,6 +95,15 @@ _STATUS_FIELDS = ("ScanCount", "CtlState", "BusyMailbox", "CommandsAnswered",
                   "CommandsIgnored", "BaseDeg", "ShoulderDeg", "ElbowDeg", "EchoX", "EchoY",
                   "EchoZ", "BasePulseUs", "ShoulderPulseUs", "ElbowPulseUs", "PwmPrescale",
                   "PwmReady", "InitFrames", "BatchOwner", "BatchCount", "BatchFailures")
+_MOTION_FIELDS = ("MotionScan", "MotionKind", "MotionBusy", "MotionDone", "MotionError",
+                  "MotionErrorId", "MotionAborted", "MotionMailbox", "MotionSession",
+                  "MotionSeq", "MotionStarts", "MotionProgress", "MotionDeviation",
+                  "MotionAtLimit", "MotionDuration", "SetBaseDeg", "SetShoulderDeg",
+                  "SetElbowDeg", "SetBaseVel", "SetShoulderVel", "SetElbowVel", "OutBaseDeg",
+                  "OutShoulderDeg", "OutElbowDeg", "OutBaseVel", "OutShoulderVel",
+                  "OutElbowVel", "CartValid", "CartX", "CartY", "CartZ", "SlewLimited",
+                  "SlewErrorId", "LimBaseVel", "LimShoulderVel", "LimElbowVel", "LimBaseAcc",
+                  "LimShoulderAcc", "LimElbowAcc")
 _CAL_SUFFIXES = ("ZeroDeg", "Direction", "MinPulseUs", "MaxPulseUs", "MinAngleDeg",
                  "MaxAngleDeg")
 _LUT_FIELDS = ("LutSession", "LutSeq", "LutErrorId", "LutXMm100", "LutYMm100", "LutZMm100",
@@ -155,6 +180,80 @@ class Status:
     batch_owner: int
     batch_count: int
     batch_failures: int
+
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class MotionTicket:
+    """Who started a motion: the command's mailbox, session and sequence number (what the
+    PLC shows in MotionMailbox/MotionSession/MotionSeq while that motion is the last one)."""
+
+    mailbox: int
+    session: int
+    seq: int
+
+
+@dataclass(frozen=True)
+class MotionSample:
+    """One read of the motion registers (%MD724..762), tagged with the PLC's scan."""
+
+    scan: int
+    kind: int
+    busy: bool
+    done: bool
+    error: bool
+    error_id: int
+    aborted: bool
+    ticket: MotionTicket
+    starts: int
+    progress: float
+    deviation_mm: float
+    at_limit: bool
+    duration_s: float
+    set_deg: Vec3  # group setpoints (the motion generator's)
+    set_vel: Vec3
+    out_deg: Vec3  # the slew limiter's output: what the servos are sent
+    out_vel: Vec3
+    cart_valid: bool
+    cart_mm: Vec3
+    slew_limited: bool
+    slew_error_id: int
+    limit_vel: Vec3
+    limit_acc: Vec3
+
+    @classmethod
+    def decode(cls, v: Sequence[float]) -> MotionSample:
+        i = [int(x) for x in v[:11]]
+        t = tuple(float(x) for x in v)
+
+        def v3(k: int) -> Vec3:
+            return (t[k], t[k + 1], t[k + 2])
+
+        return cls(scan=i[0], kind=i[1], busy=bool(i[2]), done=bool(i[3]), error=bool(i[4]),
+                   error_id=i[5], aborted=bool(i[6]), ticket=MotionTicket(i[7], i[8], i[9]),
+                   starts=i[10], progress=t[11], deviation_mm=t[12], at_limit=bool(t[13]),
+                   duration_s=t[14], set_deg=v3(15), set_vel=v3(18), out_deg=v3(21),
+                   out_vel=v3(24), cart_valid=bool(t[27]), cart_mm=v3(28),
+                   slew_limited=bool(t[31]), slew_error_id=int(t[32]), limit_vel=v3(33),
+                   limit_acc=v3(36))
+
+
+@dataclass(frozen=True)
+class MotionOutcome:
+    """How a motion ended for the client that started it: "done", "error" (with
+    ``error_id``), "aborted" (Relax) or "superseded" (another motion took the group;
+    ``by`` says whose)."""
+
+    state: str
+    error_id: int
+    by: MotionTicket | None
+    sample: MotionSample
+
+
+class MotionTimeout(HandshakeError):
+    """A motion did not end in time."""
 
 
 @dataclass(frozen=True)
@@ -335,6 +434,8 @@ class ArmControllerClient:
         self._all_answers = _Block.of(f"Mbx{k:02d}{f}" for k in range(1, MAILBOXES + 1)
                                       for f in _ANSWER_FIELDS)
         self._status = _Block.of(_STATUS_FIELDS)
+        self._motion = _Block.of(_MOTION_FIELDS)
+        self.last_ticket: MotionTicket | None = None  # the motion this client started last
         self._cal = _Block.of(f"{j}Cal{s}" for j in JOINTS for s in _CAL_SUFFIXES)
         self.batch_max = _batch_size()
         self._targets = _Block.of(f"Batch{a}{k:02d}" for k in range(1, self.batch_max + 1)
@@ -633,11 +734,91 @@ class ArmControllerClient:
         """Claim a mailbox or renew its lease."""
         return self.command(CMD_HELLO)
 
-    def move_xyz(self, x: float, y: float, z: float, elbow_down: bool = False) -> Status:
-        return self.command(CMD_MOVE_XYZ, ints=(int(elbow_down), 0), args=(x, y, z))
+    def move_xyz(self, x: float, y: float, z: float, elbow_down: bool = False,
+                 wait: bool = False) -> Status:
+        """MoveXyz: starts a joint move to the IK of (x, y, z); ``wait`` waits until that
+        motion has ended (the status then shows the servos there)."""
+        return self._motion_command(CMD_MOVE_XYZ, (int(elbow_down), 0), (x, y, z), wait)
 
-    def move_joints(self, base: float, shoulder: float, elbow: float) -> Status:
-        return self.command(CMD_MOVE_JOINTS, args=(base, shoulder, elbow))
+    def move_joints(self, base: float, shoulder: float, elbow: float,
+                    wait: bool = False) -> Status:
+        return self._motion_command(CMD_MOVE_JOINTS, (0, 0), (base, shoulder, elbow), wait)
+
+    # -- motion (codes 11..19) ---------------------------------------------------------------
+
+    def _motion_command(self, code: int, ints: tuple[int, int], args: Sequence[float],
+                        wait: bool, timeout_s: float = 30.0) -> Status:
+        st = self.command(code, ints=ints, args=args)
+        if st.error_id == ERR_OK and self.mailbox is not None:
+            self.last_ticket = MotionTicket(self.mailbox, self.session, self._seq)
+            if wait:
+                self.wait_motion(self.last_ticket, timeout_s=timeout_s)
+                return self._io(self.status, time.monotonic() + self.timeout_s)
+        return st
+
+    def move_joints_profile(self, target: Vec3, profile: int, velocity: float,
+                            acceleration: float, jerk: float = 0.0,
+                            wait: bool = False) -> Status:
+        """MoveJointsProfile: joint move with profile 0..3 (MotionJointMove), deg and s."""
+        return self._motion_command(CMD_MOVE_JOINTS_PROFILE, (profile, 0),
+                                    (*target, velocity, acceleration, jerk), wait)
+
+    def move_linear(self, target: Vec3, velocity: float, acceleration: float = 500.0,
+                    fineness: float = 1.0, method: int = 2, elbow_down: bool = False,
+                    wait: bool = False) -> Status:
+        """MoveLinear: straight line of the tool (MotionLinear), mm, mm/s, mm/s^2."""
+        return self._motion_command(CMD_MOVE_LINEAR, (method, int(elbow_down)),
+                                    (*target, velocity, acceleration, fineness), wait)
+
+    def jog_start(self, stick: Vec3, max_speed: float, acceleration: float,
+                  elbow_down: bool = False) -> Status:
+        """JogStart: jog along the stick (-1..+1 per axis); keep it alive with
+        :meth:`jog_update` more often than every ``JOG_DEADMAN_SCANS`` scans."""
+        return self._motion_command(CMD_JOG_START, (0, int(elbow_down)),
+                                    (*stick, max_speed, acceleration), False)
+
+    def jog_update(self, stick: Vec3) -> Status:
+        return self.command(CMD_JOG_UPDATE, args=stick)
+
+    def jog_stop(self) -> Status:
+        return self.command(CMD_JOG_STOP)
+
+    def stop(self, deceleration: float = 0.0, wait: bool = False) -> Status:
+        """Stop: the group brakes to standstill (0 = every joint at its own limit)."""
+        return self._motion_command(CMD_STOP, (0, 0), (deceleration,), wait)
+
+    def set_motion_limits(self, joint: int, max_vel_deg: float, max_acc_deg: float) -> Status:
+        """SetMotionLimits of joint 0 Base, 1 Shoulder, 2 Elbow (deg/s, deg/s^2)."""
+        return self.command(CMD_SET_MOTION_LIMITS, ints=(joint, 0),
+                            args=(max_vel_deg, max_acc_deg))
+
+    def motion(self) -> MotionSample:
+        """The motion registers, one FC3 request (they are contiguous)."""
+        b = self._motion
+        return MotionSample.decode(b.decode(self._io(
+            lambda: self.plc.read_holding_registers(b.address, b.length),
+            time.monotonic() + self.timeout_s)))
+
+    def wait_motion(self, ticket: MotionTicket | None = None,
+                    timeout_s: float = 30.0) -> MotionOutcome:
+        """Wait until the motion started by ``ticket`` (default: this client's last one) has
+        ended, or another motion has taken its place."""
+        ticket = ticket or self.last_ticket
+        if ticket is None:
+            raise ValueError("wait_motion: this client has started no motion")
+        deadline = time.monotonic() + timeout_s
+        while True:
+            m = self.motion()
+            if m.ticket != ticket:
+                return MotionOutcome("superseded", m.error_id, m.ticket, m)
+            if not m.busy:
+                state = ("done" if m.done else "error" if m.error else
+                         "aborted" if m.aborted else "done")
+                return MotionOutcome(state, m.error_id, None, m)
+            if time.monotonic() > deadline:
+                raise MotionTimeout(f"motion {ticket} still busy after {timeout_s:g} s "
+                                    f"(progress {m.progress:.3f})")
+            time.sleep(0.005)
 
     def init_pwm(self) -> Status:
         return self.command(CMD_INIT_PWM)
@@ -778,3 +959,105 @@ class ArmControllerClient:
                     out.append(LutBatchPoint((deg[0], deg[1], deg[2]),
                                              (mm100[0], mm100[1], mm100[2]), p.error_id))
         return out
+
+@dataclass
+class MotionRecording:
+    """The samples of a :class:`MotionRecorder`, one per scan seen, in scan order."""
+
+    samples: list[MotionSample]
+    missed_scans: int  # scans between the first and the last sample that were not sampled
+    reads: int  # FC3 requests made
+
+    def consecutive(self) -> Iterator[tuple[MotionSample, MotionSample]]:
+        """Pairs of samples of neighbouring scans (k, k + 1): per-scan steps are exact."""
+        for a, b in zip(self.samples, self.samples[1:], strict=False):
+            if (b.scan - a.scan) & 0xFFFFFFFF == 1:
+                yield a, b
+
+    def triples(self) -> Iterator[tuple[MotionSample, MotionSample, MotionSample]]:
+        """Samples of three neighbouring scans (for the change of a per-scan step)."""
+        s = self.samples
+        for a, b, c in zip(s, s[1:], s[2:], strict=False):
+            if (b.scan - a.scan) & 0xFFFFFFFF == 1 and (c.scan - b.scan) & 0xFFFFFFFF == 1:
+                yield a, b, c
+
+
+class MotionRecorder:
+    """Samples the motion registers every scan on its own connection (one FC3 read per
+    sample, tagged with the PLC's ScanCount), in a background thread between
+    :meth:`start` and :meth:`stop`. Scans it could not sample are counted, never guessed."""
+
+    def __init__(self, host: str, port: int, poll_interval_s: float = 0.001) -> None:
+        self.host, self.port = host, port
+        self.poll_interval_s = poll_interval_s
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._samples: list[MotionSample] = []
+        self._reads = 0
+        self._error: BaseException | None = None
+
+    def __enter__(self) -> MotionRecorder:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._thread is not None:
+            self.stop()
+
+    @property
+    def recording(self) -> bool:
+        return self._thread is not None
+
+    def start(self) -> None:
+        if self._thread is not None:
+            raise RuntimeError("MotionRecorder.start: already recording")
+        self._stop.clear()
+        self._samples = []
+        self._reads = 0
+        self._error = None
+        ready = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(ready,), daemon=True,
+                                        name="motion-recorder")
+        self._thread.start()
+        ready.wait(5.0)
+
+    def _run(self, ready: threading.Event) -> None:
+        try:
+            with PlcClient(self.host, self.port) as plc:
+                ctl = ArmControllerClient(plc)
+                last = -1
+                ready.set()
+                while not self._stop.is_set():
+                    m = ctl.motion()
+                    self._reads += 1
+                    if m.scan != last:
+                        self._samples.append(m)
+                        last = m.scan
+                    if self.poll_interval_s > 0.0:
+                        time.sleep(self.poll_interval_s)
+        except BaseException as exc:  # reported by stop(): a thread cannot raise to the test
+            self._error = exc
+            ready.set()
+
+    def stop(self) -> MotionRecording:
+        """End the recording; raises what broke the sampling connection, if anything."""
+        if self._thread is None:
+            raise RuntimeError("MotionRecorder.stop: not recording")
+        self._stop.set()
+        self._thread.join(10.0)
+        self._thread = None
+        if self._error is not None:
+            raise HandshakeError(f"motion recorder at {self.host}:{self.port}: "
+                                 f"{self._error}") from self._error
+        samples = sorted(self._samples, key=lambda m: m.scan)
+        missed = sum(max(0, ((b.scan - a.scan) & 0xFFFFFFFF) - 1)
+                     for a, b in zip(samples, samples[1:], strict=False))
+        return MotionRecording(samples, missed, self._reads)
+
+    def record_until_idle(self, client: ArmControllerClient, ticket: MotionTicket | None = None,
+                          timeout_s: float = 30.0) -> tuple[MotionOutcome, MotionRecording]:
+        """While recording: wait for ``client``'s motion to end, then a few more scans (so
+        the standstill is in the record), and stop."""
+        outcome = client.wait_motion(ticket, timeout_s=timeout_s)
+        client.wait_scans(5)
+        return outcome, self.stop()

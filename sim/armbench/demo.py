@@ -4,11 +4,13 @@ Compiles the library and ``plc_project/Controller.st``, runs the soft PLC in rea
 its Modbus server on a free loopback port, and talks to it only through Modbus. The servo
 calibration is read back from the PLC (one copy of the zero offsets: the program's). The whole
 path is first checked with SolveBatch commands (32 points per scan), then driven with one
-MoveXyz per point (request/acknowledge handshake). Each point's 16 PCA9685 words go into the
-PCA9685 device model, its pulse widths into three MG996R servo models, and the settled servo
-angles through the numpy reference kinematics: the achieved tool position, compared with the
-commanded one (the difference includes the 12-bit PWM quantisation). Plots of the run go to
-``--out`` (default ``out/demo``) as PNGs.
+MoveXyz per point (request/acknowledge handshake): the motion layer turns each into a
+synchronised joint move through the slew-limited output stage, and the client waits for it to
+end; a recorder samples the setpoints every scan for the velocity plot. Each point's 16
+PCA9685 words go into the PCA9685 device model, its pulse widths into three MG996R servo
+models, and the settled servo angles through the numpy reference kinematics: the achieved tool
+position, compared with the commanded one (the difference includes the 12-bit PWM
+quantisation). Plots of the run go to ``--out`` (default ``out/demo``) as PNGs.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from pathlib import Path
 from typing import TextIO
 
 from . import argtypes
-from .controller_client import ArmControllerClient, Calibration
+from .controller_client import ArmControllerClient, Calibration, MotionRecorder
 from .plant import arm
 from .plant.pca9685 import PCA9685
 from .plant.servo import MG996R
@@ -140,12 +142,13 @@ class PathRun:
 def drive_path(ctl: ArmControllerClient, plant: Plant,
                points: Sequence[tuple[float, float, float]],
                progress: Callable[[int, int], None] | None = None) -> PathRun:
-    """One MoveXyz per point (handshake), then the plant: PCA9685 words -> pulses -> servo
-    angles -> reference FK. Rejected points are counted and skipped."""
+    """One MoveXyz per point (handshake), waiting until the motion layer has moved the
+    servos there, then the plant: PCA9685 words -> pulses -> servo angles -> reference FK.
+    Rejected points are counted and skipped."""
     run = PathRun()
     t_start = time.perf_counter()
     for i, p in enumerate(points, start=1):
-        st = ctl.move_xyz(*p)
+        st = ctl.move_xyz(*p, wait=True)
         if st.error_id != 0:
             run.rejected += 1
             continue
@@ -226,7 +229,13 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
                   f"{unreachable} rejected, max |commanded - FK echo| {batch_echo:.5f} mm\n")
             running.plc.reset_stats()
             ctl.polls = 0
-            result = drive_path(ctl, plant, pts, progress)
+            # the motion layer's setpoints, every scan, on a connection of their own
+            recorder = MotionRecorder(running.host, running.port)
+            recorder.start()
+            try:
+                result = drive_path(ctl, plant, pts, progress)
+            finally:
+                recording = recorder.stop()
             if tty:
                 write("\n")
             stats = running.plc.stats()
@@ -241,6 +250,14 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
     write(f"throughput: {points / result.elapsed_s:.1f} points/s ({result.elapsed_s:.2f} s, "
           f"{ctl.polls} answer polls, poll interval {poll_ms:g} ms); "
           f"simulated servo settle time {plant.settle_s:.1f} s\n")
+    if recording.samples:
+        steps = [max(abs(b.out_deg[j] - a.out_deg[j]) for j in range(3))
+                 for a, b in recording.consecutive()]
+        peak = max(abs(v) for m in recording.samples for v in m.out_vel)
+        write(f"motion layer: {len(recording.samples)} scans recorded ({recording.missed_scans} "
+              f"missed), peak joint speed {peak:.1f} deg/s (limit "
+              f"{max(recording.samples[0].limit_vel):g}), largest servo step in one scan "
+              f"{max(steps, default=0.0):.3f} deg\n")
     for s in stats.values():
         write(f"PLC task {s.name}: {s.scans} scans every {s.interval_ns / 1e6:g} ms, "
               f"overruns {s.overruns}, execution mean {s.execution.mean_ns / 1e3:.1f} us "
@@ -252,6 +269,15 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
         for path in demo_plots(out_dir, result.commanded, result.achieved, result.joints,
                                result.achieved_joints, result.pulses, result.counts):
             write(f"plot: {path}\n")
+        if recording.samples:
+            from .plots.demo import joint_velocities
+
+            vel_path = joint_velocities([m.scan for m in recording.samples],
+                                        [m.set_vel for m in recording.samples],
+                                        [m.out_vel for m in recording.samples],
+                                        max(recording.samples[0].limit_vel),
+                                        out_dir / "velocities.png")
+            write(f"plot: {vel_path}\n")
     ok = (result.rejected == 0 and unreachable == 0 and bool(errs) and max(echo_errs) <= 0.05
           and batch_echo <= 0.05)
     return 0 if ok else 1

@@ -232,7 +232,7 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "`armbench.controller_client.ArmControllerClient` implements the client side.",
         "",
         "```text",
-        *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "RESULT CODES",
+        *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "MOTION", "RESULT CODES",
                            "LUT COMMANDS")),
         "```",
         "",

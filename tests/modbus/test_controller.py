@@ -84,7 +84,7 @@ def _rejected(plc: ArmControllerClient, before: Status, after: Status,
 @pytest.mark.parametrize("target", [(1000.0, 0.0, 120.0), (0.0, 0.0, 1.0e7), (400.0, 0.0, 100.0)])
 def test_unreachable_target_is_rejected(plc: ArmControllerClient,
                                         target: tuple[float, float, float]) -> None:
-    before = plc.move_xyz(150.0, 10.0, 120.0)
+    before = plc.move_xyz(150.0, 10.0, 120.0, wait=True)
     words = plc.channel_words()
     after = plc.move_xyz(*target)
     _rejected(plc, before, after, words, ERR_UNREACHABLE)
@@ -92,7 +92,7 @@ def test_unreachable_target_is_rejected(plc: ArmControllerClient,
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_non_finite_target_is_rejected(plc: ArmControllerClient, bad: float) -> None:
-    before = plc.move_xyz(160.0, -10.0, 110.0)
+    before = plc.move_xyz(160.0, -10.0, 110.0, wait=True)
     words = plc.channel_words()
     _rejected(plc, before, plc.move_xyz(bad, 0.0, 120.0), words, ERR_NOT_FINITE)
     _rejected(plc, before, plc.move_xyz(150.0, 0.0, bad), words, ERR_NOT_FINITE)
@@ -100,15 +100,15 @@ def test_non_finite_target_is_rejected(plc: ArmControllerClient, bad: float) -> 
 
 
 def test_unknown_command_is_rejected(plc: ArmControllerClient) -> None:
-    before = plc.move_xyz(150.0, 0.0, 130.0)
+    before = plc.move_xyz(150.0, 0.0, 130.0, wait=True)
     words = plc.channel_words()
-    for code in (0, 11, 99, -1, 65536):
+    for code in (0, 18, 99, -1, 65536):  # 11..17 are the motion commands
         _rejected(plc, before, plc.command(code, args=(1.0, 2.0, 3.0)), words,
                   ERR_UNKNOWN_COMMAND)
 
 
 def test_joint_outside_servo_travel_is_rejected(plc: ArmControllerClient) -> None:
-    before = plc.move_joints(0.0, 70.0, 65.0)
+    before = plc.move_joints(0.0, 70.0, 65.0, wait=True)
     words = plc.channel_words()
     _rejected(plc, before, plc.move_joints(61.0, 70.0, 65.0), words, ERR_JOINT_LIMIT)
 
@@ -122,7 +122,7 @@ def _datasheet_count(pulse_us: float) -> int:
 def test_pwm_counts_match_datasheet(plc: ArmControllerClient,
                                    joints: tuple[float, float, float]) -> None:
     zero = [c.zero_offset_deg for c in plc.calibration()]  # read back, not duplicated
-    st = plc.move_joints(*joints)
+    st = plc.move_joints(*joints, wait=True)
     assert st.error_id == 0
     words = plc.channel_words()
     for ch, angle in enumerate(joints):
@@ -184,7 +184,7 @@ def test_set_calibration_changes_the_pulses(plc: ArmControllerClient) -> None:
     st = plc.set_calibration(2, cal)
     assert st.error_id == 0
     assert plc.calibration()[2] == cal
-    st = plc.move_joints(0.0, 70.0, cal.zero_offset_deg - 12.0)
+    st = plc.move_joints(0.0, 70.0, cal.zero_offset_deg - 12.0, wait=True)
     assert st.error_id == 0
     assert st.pulses_us[2] == pytest.approx(1500.0 + 12.0 * 1000.0 / 120.0, abs=1e-3)
     st = plc.move_joints(0.0, 70.0, cal.zero_offset_deg - 46.0)  # 46 deg > the new 45 deg travel
@@ -202,7 +202,7 @@ def test_set_calibration_changes_the_pulses(plc: ArmControllerClient) -> None:
 ])
 def test_bad_calibration_is_rejected(plc: ArmControllerClient, joint: int, cal: Calibration,
                                      code: int) -> None:
-    before = plc.move_joints(5.0, 75.0, 60.0)
+    before = plc.move_joints(5.0, 75.0, 60.0, wait=True)
     cals = plc.calibration()
     words = plc.channel_words()
     after = plc.set_calibration(joint, cal)
@@ -238,7 +238,7 @@ def test_batch_matches_single_moves(plc: ArmControllerClient) -> None:
 
 
 def test_batch_reports_each_points_error_and_moves_nothing(plc: ArmControllerClient) -> None:
-    before = plc.move_xyz(150.0, 0.0, 120.0)
+    before = plc.move_xyz(150.0, 0.0, 120.0, wait=True)
     words = plc.channel_words()
     targets = [(150.0, 10.0, 120.0), (1000.0, 0.0, 120.0), (math.nan, 0.0, 0.0),
                (150.0, -10.0, 120.0)]
@@ -255,7 +255,7 @@ def test_batch_reports_each_points_error_and_moves_nothing(plc: ArmControllerCli
 
 @pytest.mark.parametrize("count", [0, -1, 33, 1000])
 def test_batch_bad_count_is_rejected(plc: ArmControllerClient, count: int) -> None:
-    before = plc.move_xyz(150.0, 5.0, 120.0)
+    before = plc.move_xyz(150.0, 5.0, 120.0, wait=True)
     plc.solve_batch([(150.0, 0.0, 120.0)])
     st_before = plc.status()
     results = plc.batch_results(1)

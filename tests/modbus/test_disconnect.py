@@ -70,7 +70,7 @@ def _serves_a_new_client(address: tuple[str, int]) -> None:
 
 def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int]) -> None:
     modbus, ctl = _client(plc_address)
-    ctl.move_xyz(150.0, 0.0, 120.0)
+    ctl.move_xyz(150.0, 0.0, 120.0, wait=True)
     before = _snapshot(ctl)
     # A MoveJoints to another pose, written the wrong way: FC06, one register at a time; the
     # client dies after the new Seq, Code and one half of Arg1 -- Check never written.
@@ -91,7 +91,7 @@ def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int
 def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) -> None:
     modbus, ctl = _client(plc_address)
     with modbus, ctl:
-        ctl.move_xyz(150.0, 0.0, 120.0)
+        ctl.move_xyz(150.0, 0.0, 120.0, wait=True)
         before = _snapshot(ctl)
         address, words = ctl.block_words(ctl.open(), before[0].ack_seq + 1, CMD_MOVE_JOINTS,
                                          args=(30.0, 80.0, 70.0))

@@ -86,7 +86,7 @@ def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
 
 
 def test_rewriting_only_seq_runs_nothing(plc: ArmControllerClient) -> None:
-    plc.move_joints(0.0, 70.0, 65.0)
+    plc.move_joints(0.0, 70.0, 65.0, wait=True)
     before = plc.status()
     assert plc.mailbox is not None
     seq_reg = controller_map()[f"MBX{plc.mailbox:02d}SEQ"]
@@ -266,11 +266,11 @@ def _read_outputs(plc: ArmControllerClient, names: list[str]) -> dict[str, list[
 
 def test_every_output_heals_within_a_scan(plc: ArmControllerClient) -> None:
     plc.init_pwm()
-    plc.move_xyz(150.0, 10.0, 120.0)
+    plc.move_xyz(150.0, 10.0, 120.0, wait=True)
     plc.solve_batch([(150.0, 0.0, 120.0), (1000.0, 0.0, 0.0)])
     names = _outputs()
     assert len(names) > 300  # status, calibration, answers, results, init frames, channels
-    moving = {"SCANCOUNT"}
+    moving = {"SCANCOUNT", "MOTIONSCAN"}
     before = _read_outputs(plc, names)
     regs = controller_map()
     for n in names:  # spoof every one of them
@@ -315,7 +315,7 @@ def test_bad_calibration_then_an_ordinary_move_cannot_jump(plc: ArmControllerCli
             st = plc.set_calibration(joint, cal)
             assert st.error_id != ERR_OK, (joint, cal)
     assert plc.calibration() == saved
-    st = plc.move_joints(10.0, 70.0, 65.0)
+    st = plc.move_joints(10.0, 70.0, 65.0, wait=True)
     assert st.error_id == ERR_OK
     zero = [c.zero_offset_deg for c in saved]
     for ch, angle in enumerate((10.0, 70.0, 65.0)):

@@ -8,6 +8,9 @@ can use them:
   with ``--plc-host``/``--plc-port`` a real PLC (OpenPLC running
   ``plc_project/openplc/arm_controller.st``).
 - ``plc``: an :class:`~armbench.controller_client.ArmControllerClient` connected to it.
+- ``motion_recorder``: a factory of :class:`~armbench.controller_client.MotionRecorder`s on
+  their own connections to it (one FC3 read of the motion registers per scan, tagged with
+  the PLC's ScanCount), stopped at the end of the test; a suite asserts on the whole path.
 
 A ``--plc-host`` PLC that does not answer Modbus ends the session with one line naming
 host:port and the reason (pytest exit code 4).
@@ -17,12 +20,12 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
 from .. import argtypes
-from ..controller_client import ArmControllerClient
+from ..controller_client import ArmControllerClient, MotionRecorder
 from ..softplc.modbus_client import ModbusError, PlcClient
 
 PROBE_TIMEOUT_S = 3.0
@@ -92,3 +95,18 @@ def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
         # (OpenPLC's accept loop) has then taken this one before the test opens another.
         ctl.scan_count()
         yield ctl
+
+
+@pytest.fixture
+def motion_recorder(plc_address: tuple[str, int]) -> Iterator[Callable[[], MotionRecorder]]:
+    made: list[MotionRecorder] = []
+
+    def make() -> MotionRecorder:
+        rec = MotionRecorder(*plc_address)
+        made.append(rec)
+        return rec
+
+    yield make
+    for rec in made:
+        if rec.recording:
+            rec.stop()

@@ -101,6 +101,29 @@ def servo_pulses(pulses_us: Sequence[Point], counts: Sequence[Point], path: Path
     return path
 
 
+def joint_velocities(scans: Sequence[int], set_vel: Sequence[Point], out_vel: Sequence[Point],
+                     limit_vel: float, path: Path, scan_s: float = 0.01) -> Path:
+    """Joint velocities over time as the motion layer recorded them every scan: the motion
+    generator's setpoint velocity and the slew limiter's output (what the servos get)."""
+    fig, axes = plt.subplots(3, 1, figsize=(9.0, 7.0), sharex=True)
+    t = [(k - scans[0]) * scan_s for k in scans]
+    for j, (ax, name) in enumerate(zip(axes, JOINT_NAMES, strict=True)):
+        ax.plot(t, [v[j] for v in set_vel], lw=1.6, label="group setpoint (generator)")
+        ax.plot(t, [v[j] for v in out_vel], lw=0.8, ls="--", label="slew limiter output")
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * limit_vel, color="grey", lw=0.8, ls=":")
+        ax.set_ylabel(f"{name} (deg/s)")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title(f"Joint velocities, sampled every scan (limit ±{limit_vel:g} deg/s dotted)",
+                      fontsize=10)
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
 def demo_plots(out_dir: Path, commanded_xyz: Sequence[Point], achieved_xyz: Sequence[Point],
                commanded_joints: Sequence[Point], achieved_joints: Sequence[Point],
                pulses_us: Sequence[Point], counts: Sequence[Point]) -> list[Path]:
