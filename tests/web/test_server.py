@@ -309,3 +309,34 @@ def test_cli_web_port_taken() -> None:
     assert proc.returncode == 1
     assert f"cannot listen on 127.0.0.1:{port} for the web view" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_motion_commands_from_the_page(web: WebView, running: RunningPlc) -> None:
+    """A straight line sent from the page ends where the reference IK puts the target, and a
+    jog started from the page stops by itself (dead-man) when nobody keeps it alive."""
+    status, answer = post(web, {"name": "CmdInitPwm", "fields": {}})
+    assert status == 200 and answer["ok"], answer
+    status, answer = post(web, {"name": "CmdMoveJoints",
+                                "fields": {"base": 0, "shoulder": 70, "elbow": 65}})
+    assert status == 200 and answer["result"] == 0, answer
+    wait_for(lambda: read(running, "MotionDone") == 1, "the joint move to finish")
+    start_line = read(running, "MotionStarts")
+    target = (160.0, 30.0, 110.0)
+    status, answer = post(web, {"name": "CmdMoveLinear", "fields": {
+        "x": target[0], "y": target[1], "z": target[2], "speed": 60, "accel": 300,
+        "fineness": 2, "method": 2, "elbow": 0}})
+    assert status == 200 and answer["ok"] and answer["result"] == 0, answer
+    assert read(running, "MotionKind") == controller_constants()["KindLine"]
+    wait_for(lambda: read(running, "MotionStarts") > start_line
+             and read(running, "MotionDone") == 1, "the line to finish")
+    expected = arm.inverse(*target, elbow_up=True)
+    got = [read(running, f"Set{j}Deg") for j in ("Base", "Shoulder", "Elbow")]
+    assert got == pytest.approx(expected, abs=1e-2)
+
+    status, answer = post(web, {"name": "CmdJogStart", "fields": {
+        "sx": 0.0, "sy": 0.0, "sz": 0.3, "speed": 20, "accel": 200, "elbow": 0}})
+    assert status == 200 and answer["result"] == 0, answer
+    assert read(running, "MotionKind") == controller_constants()["KindJog"]
+    wait_for(lambda: read(running, "MotionErrorId") == 109, "the jog's dead-man stop",
+             timeout_s=5.0)
+    assert read(running, "MotionBusy") == 0

@@ -80,6 +80,10 @@ class Prepared:
 
 
 _ELBOW = (0, "elbow up"), (1, "elbow down")
+_PROFILES = ((0, "constant speed per joint"), (1, "synchronised constant speed"),
+             (2, "trapezoid"), (3, "jerk-limited"))
+_LINE_METHODS = ((0, "Bresenham (document 001)"), (1, "Bresenham + start compensation"),
+                 (2, "time-scaled path"))
 
 # The table. A new controller command is one entry here.
 COMMANDS: tuple[CommandSpec, ...] = (
@@ -112,6 +116,58 @@ COMMANDS: tuple[CommandSpec, ...] = (
                        "150 0 120\n160 20 110\n400 0 0"),
                  Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW)),
                 batch=True),
+    CommandSpec("CmdMoveJointsProfile", "Joint move (profile)",
+                "A joint move with a chosen profile through the motion layer; the servos "
+                "follow scan by scan.",
+                (Field("base", "Base", "Arg1", default=0.0, unit="deg"),
+                 Field("shoulder", "Shoulder", "Arg2", default=70.0, unit="deg"),
+                 Field("elbow", "Elbow", "Arg3", default=65.0, unit="deg"),
+                 Field("profile", "Profile", "Int1", "choice", 2,
+                       choices=_PROFILES),
+                 Field("speed", "Speed", "Arg4", default=60.0, unit="deg/s"),
+                 Field("accel", "Acceleration", "Arg5", default=300.0, unit="deg/s^2"),
+                 Field("jerk", "Jerk", "Arg6", default=3000.0, unit="deg/s^3"))),
+    CommandSpec("CmdMoveLinear", "Straight line",
+                "A Cartesian straight line to X/Y/Z (document 001's Bresenham, with or without "
+                "its start compensation, or the time-scaled path).",
+                (Field("x", "X", "Arg1", default=150.0, unit="mm"),
+                 Field("y", "Y", "Arg2", default=40.0, unit="mm"),
+                 Field("z", "Z", "Arg3", default=120.0, unit="mm"),
+                 Field("speed", "Speed", "Arg4", default=40.0, unit="mm/s"),
+                 Field("accel", "Acceleration", "Arg5", default=200.0, unit="mm/s^2"),
+                 Field("fineness", "Fineness", "Arg6", default=2.0, unit="steps/mm"),
+                 Field("method", "Method", "Int1", "choice", 2, choices=_LINE_METHODS),
+                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW))),
+    CommandSpec("CmdJogStart", "Jog",
+                "Cartesian jog along the stick vector (-1..+1 per axis). Dead-man: it brakes "
+                "by itself 0.5 s after the last Jog/Jog update.",
+                (Field("sx", "Stick X", "Arg1", default=0.5),
+                 Field("sy", "Stick Y", "Arg2", default=0.0),
+                 Field("sz", "Stick Z", "Arg3", default=0.0),
+                 Field("speed", "Max speed", "Arg4", default=30.0, unit="mm/s"),
+                 Field("accel", "Acceleration", "Arg5", default=200.0, unit="mm/s^2"),
+                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW))),
+    CommandSpec("CmdJogUpdate", "Jog update", "New stick values for the running jog.",
+                (Field("sx", "Stick X", "Arg1", default=0.5),
+                 Field("sy", "Stick Y", "Arg2", default=0.0),
+                 Field("sz", "Stick Z", "Arg3", default=0.0))),
+    CommandSpec("CmdJogStop", "Jog stop", "The jog brakes to a stop."),
+    CommandSpec("CmdStop", "Stop", "Any motion brakes to standstill within the limits.",
+                (Field("decel", "Deceleration (0 = limits)", "Arg1", default=0.0,
+                       unit="deg/s^2"),)),
+    CommandSpec("CmdSetMotionLimits", "Motion limits",
+                "A joint's speed and acceleration limits (motion blocks and output stage).",
+                (Field("joint", "Joint", "Int1", "choice", 0,
+                       choices=tuple(enumerate(JOINTS))),
+                 Field("speed", "Speed limit", "Arg1", default=150.0, unit="deg/s"),
+                 Field("accel", "Acceleration limit", "Arg2", default=1000.0,
+                       unit="deg/s^2"))),
+    CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
+                "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",
+                (Field("x", "X", "Arg1", default=150.0, unit="mm"),
+                 Field("y", "Y", "Arg2", default=0.0, unit="mm"),
+                 Field("z", "Z", "Arg3", default=120.0, unit="mm"),
+                 Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW))),
 )
 
 
