@@ -185,7 +185,7 @@ def record_points(request: pytest.FixtureRequest) -> Iterator[Callable[..., None
     yield record
 
 
-@dataclass
+@dataclass(eq=False)  # pluggy keeps plugins in sets: identity hash
 class _SweepReporter:
     """Adds up the points tests report (from every xdist worker, as their reports arrive in
     the controlling process) into one progress bar and a points/s summary."""
