@@ -15,7 +15,9 @@ The client writes the batch target registers (BatchX01.., three REALs = 6 holdin
 the %MD area), which the controller reads only when a SolveBatch command arrives. All servers
 run for the whole bench; the rounds rotate their order, so a burst of load from elsewhere on
 the machine does not land on one server only, and the table shows the median and the best
-round of each.
+round of each. Beside the rate it prints the server process's CPU time per transaction (all
+its threads, the 10 ms scans included, from /proc/PID/stat): a figure that load from
+elsewhere on the machine hardly moves, where the rate can halve.
 
     .venv/bin/python bench/modbus_server_speed.py [--seconds 3] [--rounds 5] [--cpus split]
 """
@@ -36,6 +38,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
 
@@ -96,8 +99,37 @@ def serve_soft_plc(conn: Connection, fast: bool, cpus: set[int] | None) -> None:
         plc.stop()
 
 
+def cpu_ns(pid: int) -> int:
+    """CPU time so far of process pid, all its threads, ended ones included (ns; the
+    kernel counts it in clock ticks, 10 ms on most systems)."""
+    text = Path(f"/proc/{pid}/stat").read_text()
+    utime, stime = text[text.rindex(")") + 2:].split()[11:13]
+    return (int(utime) + int(stime)) * 1_000_000_000 // os.sysconf("SC_CLK_TCK")
+
+
+def child_named(parent: int, name: str, timeout_s: float = 10.0) -> int:
+    """pid of the child of ``parent`` whose command is ``name``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            with contextlib.suppress(OSError, ValueError, IndexError):
+                text = stat.read_text()
+                comm = text[text.index("(") + 1: text.rindex(")")]
+                ppid = int(text[text.rindex(")") + 2:].split()[1])
+                if ppid == parent and comm == name:
+                    return int(stat.parent.name)
+        time.sleep(0.1)
+    raise SystemExit(f"no process {name!r} under pid {parent}")
+
+
+@dataclass(frozen=True)
+class Server:
+    port: int
+    pid: int
+
+
 @contextlib.contextmanager
-def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[int]:
+def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[Server]:
     ctx = multiprocessing.get_context("spawn")
     parent, child = ctx.Pipe()
     process = ctx.Process(target=serve_soft_plc, args=(child, fast, cpus), daemon=True)
@@ -106,7 +138,8 @@ def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[int]:
         if not parent.poll(120):
             raise SystemExit("the soft PLC did not start")
         port: int = parent.recv()
-        yield port
+        assert process.pid is not None
+        yield Server(port, process.pid)
     finally:
         parent.send("stop")
         process.join(10)
@@ -116,7 +149,7 @@ def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[int]:
 
 
 @contextlib.contextmanager
-def openplc(cpus: set[int] | None) -> Iterator[int | None]:
+def openplc(cpus: set[int] | None) -> Iterator[Server | None]:
     """The real runtime on a free port (None, with the reason printed, where it is absent)."""
     if not OPENPLC.exists():
         print(f"OpenPLC runtime: skipped ({OPENPLC} not found; see docs/modbus-parity.md)")
@@ -138,7 +171,7 @@ def openplc(cpus: set[int] | None) -> Iterator[int | None]:
                 yield None
                 return
             time.sleep(0.2)
-        yield port
+        yield Server(port, child_named(proc.pid, "openplc"))
     finally:
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)  # the script stops the runtime and cleans up
@@ -150,17 +183,22 @@ def openplc(cpus: set[int] | None) -> Iterator[int | None]:
         log.close()
 
 
-def measure(client: Path, port: int, seconds: float, address: int,
-            cpus: set[int] | None) -> float:
-    out = subprocess.run([str(client), "127.0.0.1", str(port), f"{seconds:g}", str(address),
-                          str(REGISTERS)], capture_output=True, text=True,
+def measure(client: Path, server: Server, seconds: float, address: int,
+            cpus: set[int] | None) -> tuple[float, float]:
+    """(transactions/s, server CPU µs per transaction)."""
+    cpu0 = cpu_ns(server.pid)
+    out = subprocess.run([str(client), "127.0.0.1", str(server.port), f"{seconds:g}",
+                          str(address), str(REGISTERS)], capture_output=True, text=True,
                          preexec_fn=(lambda: pin(cpus)) if cpus else None)
+    cpu = cpu_ns(server.pid) - cpu0
     if out.returncode != 0:
-        raise SystemExit(f"modbus_pairs on port {port} failed: {out.stderr.strip()}")
-    found = re.search(r"tps=(\d+)", out.stdout)
+        raise SystemExit(f"modbus_pairs on port {server.port} failed: {out.stderr.strip()}")
+    found = re.search(r"pairs=(\d+) .*tps=(\d+)", out.stdout)
     if found is None:
         raise SystemExit(f"modbus_pairs printed {out.stdout!r}")
-    return float(found.group(1))
+    # the warm-up's 200 pairs ran on the server's CPU clock too
+    transactions = 2 * (int(found.group(1)) + 200)
+    return float(found.group(2)), cpu / 1000.0 / transactions
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -182,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
         client = build_client(Path(tmp))
-        ports: dict[str, int] = {
+        servers: dict[str, Server] = {
             "soft PLC, compiled path": stack.enter_context(soft_plc(True, server_cpus)),
             "soft PLC, Python path": stack.enter_context(soft_plc(False, server_cpus)),
         }
@@ -191,25 +229,31 @@ def main(argv: list[str] | None = None) -> int:
         else:
             real = stack.enter_context(openplc(server_cpus))
             if real is not None:
-                ports["OpenPLC v3 runtime"] = real
-        names = list(ports)
+                servers["OpenPLC v3 runtime"] = real
+        names = list(servers)
         figures: dict[str, list[float]] = {n: [] for n in names}
+        cpu: dict[str, list[float]] = {n: [] for n in names}
         print(f"FC16 write of {REGISTERS} registers at {address} + FC3 read back, one "
               f"connection, {a.seconds:g} s per measurement, CPUs {a.cpus}; tx/s per round:")
         for r in range(a.rounds):
             order = names[r % len(names):] + names[: r % len(names)]
             for name in order:
-                figures[name].append(measure(client, ports[name], a.seconds, address,
-                                             client_cpus))
+                tps, us = measure(client, servers[name], a.seconds, address, client_cpus)
+                figures[name].append(tps)
+                cpu[name].append(us)
             print(f"  round {r + 1}: " + ", ".join(f"{n} {figures[n][-1]:.0f}" for n in names))
 
-    print(f"\n{'server':<26}{'median tx/s':>13}{'best tx/s':>11}")
+    print(f"\n{'server':<26}{'median tx/s':>13}{'best tx/s':>11}{'server CPU µs/tx':>18}")
     for n in names:
-        print(f"{n:<26}{statistics.median(figures[n]):>13.0f}{max(figures[n]):>11.0f}")
+        print(f"{n:<26}{statistics.median(figures[n]):>13.0f}{max(figures[n]):>11.0f}"
+              f"{statistics.median(cpu[n]):>18.2f}")
     if "OpenPLC v3 runtime" in figures:
         ratio = statistics.median(figures[names[0]]) / statistics.median(
             figures["OpenPLC v3 runtime"])
-        print(f"soft PLC (compiled) / OpenPLC, medians: {ratio:.2f}")
+        cpu_ratio = statistics.median(cpu[names[0]]) / statistics.median(
+            cpu["OpenPLC v3 runtime"])
+        print(f"soft PLC (compiled) / OpenPLC, medians: rate {ratio:.2f}, "
+              f"CPU per transaction {cpu_ratio:.2f}")
     return 0
 
 
