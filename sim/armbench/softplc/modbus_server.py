@@ -40,6 +40,13 @@ down, which wakes their threads (blocked in ``recv``, or in ``sendall`` to a pee
 not read) so they close and exit. A connection thread only records the time of each complete
 request, so the request path costs one clock read more. A connection that sends a broken
 frame is dropped without affecting the others.
+
+Two request paths answer alike: by default each connection thread hands its socket to the
+compiled loop of ``modbus_fast.c`` (fastpath.py), which serves it in C with the GIL released
+and takes the scan lock (an :class:`~armbench.softplc.fastpath.ImageLock`) around each
+request; with a plain ``threading.Lock`` (or ``fast_path=False``) the thread runs
+``_serve_frames`` and :class:`PduHandler` below, the Python reference of every rule above
+(docs/modbus-parity.md, Performance).
 """
 
 from __future__ import annotations
