@@ -134,7 +134,12 @@ def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
     if not addresses:
         return None
     index, _count = _worker(request.config)
-    # pytest_configure already refused more workers than addresses without --plc-share
+    # pytest_configure refused more workers than addresses without --plc-share; a worker
+    # xdist started later to replace a crashed one can still number past the list
+    if index >= len(addresses) and not request.config.getoption("--plc-share"):
+        pytest.exit(f"armbench: pytest-xdist worker gw{index} has no PLC address of its own "
+                    f"({len(addresses)} given with --plc-address); add --plc-share to let "
+                    f"workers share", returncode=pytest.ExitCode.USAGE_ERROR)
     host, port = addresses[index % len(addresses)]
     option = "--plc-address" if request.config.getoption("--plc-address") else \
         "--plc-host/--plc-port"
