@@ -70,3 +70,19 @@ def _float(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return value
+
+
+def plc_addresses(text: str) -> tuple[tuple[str, int], ...]:
+    """A comma-separated list of PLC addresses, ``host:port`` or ``host`` (port 502); an IPv6
+    host goes in brackets, ``[::1]:5020``."""
+    out: list[tuple[str, int]] = []
+    for item in text.split(","):
+        item = item.strip()
+        host, sep, port_text = item.rpartition(":")
+        if not sep or (host.count(":") and not host.startswith("[")):
+            host, port_text = item, "502"  # no port, or a bare IPv6 address
+        host = host.removeprefix("[").removesuffix("]")
+        if not host:
+            raise argparse.ArgumentTypeError(f"no host in {item!r} (want host:port)")
+        out.append((host, port(port_text)))
+    return tuple(out)

@@ -14,7 +14,8 @@ try:
 except ImportError:  # checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "sim"))
 
-from armbench.softplc import ModbusServer, ProcessImage
+from armbench.softplc import ImageLock, ModbusServer, ProcessImage
+from armbench.softplc.fastpath import ScanLock
 from armbench.softplc.modbus_client import PlcClient
 
 
@@ -23,14 +24,17 @@ def image() -> ProcessImage:
     return ProcessImage.allocate()
 
 
-@pytest.fixture
-def scan_lock() -> threading.Lock:
-    return threading.Lock()
+@pytest.fixture(params=["compiled", "python"])
+def scan_lock(request: pytest.FixtureRequest) -> ScanLock:
+    """The soft PLC's lock, one of each kind: an ImageLock puts the server on its compiled
+    request path (the default), a threading.Lock on the Python one; both must answer alike."""
+    return ImageLock() if request.param == "compiled" else threading.Lock()
 
 
 @pytest.fixture
-def server(image: ProcessImage, scan_lock: threading.Lock) -> Iterator[ModbusServer]:
+def server(image: ProcessImage, scan_lock: ScanLock) -> Iterator[ModbusServer]:
     with ModbusServer(image, scan_lock, port=0) as srv:
+        assert srv.fast_path == isinstance(scan_lock, ImageLock)
         yield srv
 
 

@@ -58,7 +58,13 @@ def build(unit: CUnit, extra_flags: tuple[str, ...] = ()) -> BuiltLibrary:
     c_path = out_dir / f"plc_{digest}.c"
     if so.exists():
         return BuiltLibrary(so, True, c_path)
-    c_path.write_text(unit.code)
+    # Written under a temporary name and renamed, like the library: a concurrent build of the
+    # same program (pytest-xdist workers on a cold cache) must never truncate the file while
+    # this one's compiler reads it.
+    fd, tmp_c = tempfile.mkstemp(suffix=".c", dir=out_dir)
+    with os.fdopen(fd, "w") as f:
+        f.write(unit.code)
+    os.replace(tmp_c, c_path)
     cc = find_cc()
     # compile to a temporary name, then rename: concurrent builds never see a partial file
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=out_dir)

@@ -1,4 +1,5 @@
-"""FFI: load a built library with cffi and drive it from Python. The only module importing cffi.
+"""FFI: load a built library with cffi and drive it from Python. The only compiler module
+importing cffi (the soft PLC's Modbus fast path, softplc/fastpath.py, loads its own library).
 
 `Module.call` runs any FUNCTION, `Module.new_fb` / `new_program` make instances whose inputs,
 outputs and internals are read and written by (case-insensitive) ST name; values cross as

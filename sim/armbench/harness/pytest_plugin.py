@@ -4,23 +4,36 @@ Installed with the package (entry point `pytest11`), so any test suite in this e
 can use them:
 
 - ``plc_address`` (module scope): ``(host, port)`` of the PLC under test. By default a soft
-  PLC running ``plc_project/Controller.st`` with its Modbus server on a free loopback port;
-  with ``--plc-host``/``--plc-port`` a real PLC (OpenPLC running
-  ``plc_project/openplc/arm_controller.st``).
+  PLC running ``plc_project/Controller.st`` with its Modbus server on a free loopback port
+  (one per test module; under pytest-xdist every worker process starts its own, so workers
+  never share one). With ``--plc-address HOST:PORT[,HOST:PORT...]`` (or ``--plc-host`` /
+  ``--plc-port`` for one) real PLCs (OpenPLC running ``plc_project/openplc/arm_controller.st``):
+  xdist worker N gets the N-th address. More workers than addresses is a usage error unless
+  ``--plc-share`` lets the workers take the addresses in turn (the controller's 16 mailboxes
+  keep their commands apart; suites that need a PLC to themselves, like the soak's count of
+  answered commands, do not hold then).
 - ``plc``: an :class:`~armbench.controller_client.ArmControllerClient` connected to it.
 - ``motion_recorder``: a factory of :class:`~armbench.controller_client.MotionRecorder`s on
   their own connections to it (one FC3 read of the motion registers per scan, tagged with
   the PLC's ScanCount), stopped at the end of the test; a suite asserts on the whole path.
+- ``record_points``: ``record_points(n, total=...)`` tells the session that the running test
+  checked ``n`` points of a sweep of ``total``. The controlling process (the one pytest-xdist
+  workers report to) adds them up into one progress bar (``--sweep-progress``) and prints
+  ``armbench sweep: N points in T s = R points/s on W workers`` at the end, T being the time
+  from the first sweep test's start to the last one's end (PLC start-up not included).
 
-A ``--plc-host`` PLC that does not answer Modbus ends the session with one line naming
-host:port and the reason (pytest exit code 4).
+A real PLC that does not answer Modbus ends the session with one line naming host:port and
+the reason (pytest exit code 4).
 """
 
 from __future__ import annotations
 
 import socket
+import sys
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
 
 import pytest
 
@@ -31,12 +44,67 @@ from ..softplc.modbus_client import ModbusError, PlcClient
 PROBE_TIMEOUT_S = 3.0
 
 
+POINTS_KEY = "armbench_points"  # user_properties entry: (points, total, start, stop)
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("armbench", "arm controller under test")
     group.addoption("--plc-host", default=None,
                     help="run the Modbus tests against a real PLC at this host")
-    group.addoption("--plc-port", type=argtypes.port, default=502,
+    group.addoption("--plc-port", type=argtypes.port, default=None,
                     help="its Modbus TCP port (502)")
+    group.addoption("--plc-address", type=argtypes.plc_addresses, default=None,
+                    metavar="HOST:PORT[,HOST:PORT...]",
+                    help="real PLCs, one per pytest-xdist worker (worker N takes the N-th)")
+    group.addoption("--plc-share", action="store_true",
+                    help="let more xdist workers than --plc-address entries share the PLCs")
+    group.addoption("--sweep-progress", choices=("auto", "bar", "off"), default="auto",
+                    help="progress bar of the points tests report with record_points "
+                         "(auto: when stderr is a terminal)")
+
+
+def plc_addresses(config: pytest.Config) -> tuple[tuple[str, int], ...]:
+    """The real PLCs named on the command line (empty: soft PLCs)."""
+    listed: tuple[tuple[str, int], ...] | None = config.getoption("--plc-address")
+    host: str | None = config.getoption("--plc-host")
+    port: int | None = config.getoption("--plc-port")
+    if listed is not None and (host is not None or port is not None):
+        raise pytest.UsageError("give either --plc-address or --plc-host/--plc-port, not both")
+    if listed is not None:
+        return listed
+    if host is None:
+        if port is not None:
+            raise pytest.UsageError("--plc-port needs --plc-host (or use --plc-address)")
+        return ()
+    return ((host, 502 if port is None else port),)
+
+
+def _worker(config: pytest.Config) -> tuple[int, int]:
+    """(index, count) of this pytest-xdist worker; (0, 1) without xdist."""
+    info: dict[str, Any] | None = getattr(config, "workerinput", None)
+    if info is None:
+        return 0, 1
+    return int(str(info["workerid"]).removeprefix("gw")), int(info["workercount"])
+
+
+def _xdist_workers(config: pytest.Config) -> int:
+    """Workers the controlling process will start (0 without xdist)."""
+    n = getattr(config.option, "numprocesses", None)
+    return n if isinstance(n, int) else 0
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    addresses = plc_addresses(config)
+    if hasattr(config, "workerinput"):
+        return
+    workers = _xdist_workers(config)
+    if addresses and workers > len(addresses) and not config.getoption("--plc-share"):
+        raise pytest.UsageError(
+            f"{workers} pytest-xdist workers but {len(addresses)} PLC address(es): give one "
+            f"--plc-address entry per worker (or -n {len(addresses)}), or add --plc-share to "
+            f"let workers share a PLC (its 16 mailboxes keep their commands apart, but tests "
+            f"that need the PLC to themselves, such as test_soak, then fail)")
+    config.pluginmanager.register(_SweepReporter(config, max(workers, 1)), "armbench-sweep")
 
 
 def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
@@ -63,15 +131,24 @@ def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | Non
 
 @pytest.fixture(scope="session")
 def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
-    """The --plc-host PLC, checked once: one clear line and the end of the session when it
-    does not answer, instead of every test failing with the same connection error."""
-    host = request.config.getoption("--plc-host")
-    if host is None:
+    """This worker's real PLC, checked once: one clear line and the end of the session when
+    it does not answer, instead of every test failing with the same connection error."""
+    addresses = plc_addresses(request.config)
+    if not addresses:
         return None
-    port = int(request.config.getoption("--plc-port"))
+    index, _count = _worker(request.config)
+    # pytest_configure refused more workers than addresses without --plc-share; a worker
+    # xdist started later to replace a crashed one can still number past the list
+    if index >= len(addresses) and not request.config.getoption("--plc-share"):
+        pytest.exit(f"armbench: pytest-xdist worker gw{index} has no PLC address of its own "
+                    f"({len(addresses)} given with --plc-address); add --plc-share to let "
+                    f"workers share", returncode=pytest.ExitCode.USAGE_ERROR)
+    host, port = addresses[index % len(addresses)]
+    option = "--plc-address" if request.config.getoption("--plc-address") else \
+        "--plc-host/--plc-port"
     reason = probe(host, port)
     if reason is not None:
-        pytest.exit(f"armbench: the PLC at {host}:{port} (--plc-host/--plc-port) does not "
+        pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) does not "
                     f"answer: {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
     return host, port
 
@@ -110,3 +187,86 @@ def motion_recorder(plc_address: tuple[str, int]) -> Iterator[Callable[[], Motio
     for rec in made:
         if rec.recording:
             rec.stop()
+
+
+@pytest.fixture
+def record_points(request: pytest.FixtureRequest) -> Iterator[Callable[..., None]]:
+    """``record_points(n, total=0)``: this test checked ``n`` more points of a sweep of
+    ``total`` (reported to the session's progress bar and points/s summary)."""
+    counted = 0
+    start = time.time()  # wall clock: the workers' figures are compared across processes
+
+    def record(n: int, total: int = 0) -> None:
+        nonlocal counted
+        if n < 0:
+            raise ValueError(f"a test cannot check {n} points")
+        counted += n
+        props = [p for p in request.node.user_properties if p[0] != POINTS_KEY]
+        props.append((POINTS_KEY, (counted, total, start, time.time())))
+        request.node.user_properties[:] = props
+
+    yield record
+
+
+@dataclass(eq=False)  # pluggy keeps plugins in sets: identity hash
+class _SweepReporter:
+    """Adds up the points tests report (from every xdist worker, as their reports arrive in
+    the controlling process) into one progress bar and a points/s summary."""
+
+    config: pytest.Config
+    workers: int
+    points: int = 0
+    total: int = 0
+    first_start: float | None = None
+    last_stop: float = 0.0
+    bar: Any = field(default=None, repr=False)
+
+    def _want_bar(self) -> bool:
+        mode = self.config.getoption("--sweep-progress")
+        return mode == "bar" or (mode == "auto" and sys.stderr.isatty())
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        if report.when != "call":
+            return
+        for key, value in report.user_properties:
+            if key != POINTS_KEY:
+                continue
+            entry: Any = value
+            n, total, start, stop = entry
+            self.points += int(n)
+            self.total = max(self.total, int(total))
+            self.first_start = start if self.first_start is None else min(self.first_start,
+                                                                          start)
+            self.last_stop = max(self.last_stop, stop)
+            self._show(int(n))
+
+    def _show(self, n: int) -> None:
+        if not self._want_bar():
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total or None, unit="pt", desc="FK∘IK sweep",
+                            file=sys.stderr, dynamic_ncols=True, leave=True)
+        if self.total and self.bar.total != self.total:
+            self.bar.total = self.total
+        self.bar.update(n)
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_report_teststatus(self, report: pytest.TestReport,
+                                 config: pytest.Config) -> tuple[str, str, str] | None:
+        # With the bar drawn, a sweep test's pass shows there, not as a dot in its line.
+        if (self.bar is not None and report.when == "call" and report.passed
+                and any(k == POINTS_KEY for k, _ in report.user_properties)):
+            return "passed", "", "PASSED"
+        return None
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        if self.first_start is None:
+            return
+        span = max(self.last_stop - self.first_start, 1e-9)
+        terminalreporter.write_line(
+            f"armbench sweep: {self.points} points in {span:.2f} s = "
+            f"{self.points / span:.0f} points/s on {self.workers} worker(s)")

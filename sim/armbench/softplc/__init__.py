@@ -4,6 +4,7 @@ The pymodbus client lives in :mod:`armbench.softplc.modbus_client` and is delibe
 imported here, so using the runtime does not pull in pymodbus.
 """
 
+from .fastpath import ImageLock
 from .image import IMAGE_SIZE, ProcessImage
 from .modbus_server import ModbusServer, PduHandler
 from .program import CompiledProgram, PlcFault, TaskSpec
@@ -14,6 +15,7 @@ __all__ = [
     "CompiledProgram",
     "Distribution",
     "FaultInfo",
+    "ImageLock",
     "ModbusServer",
     "PduHandler",
     "PlcFault",

@@ -40,6 +40,13 @@ down, which wakes their threads (blocked in ``recv``, or in ``sendall`` to a pee
 not read) so they close and exit. A connection thread only records the time of each complete
 request, so the request path costs one clock read more. A connection that sends a broken
 frame is dropped without affecting the others.
+
+Two request paths answer alike: by default each connection thread hands its socket to the
+compiled loop of ``modbus_fast.c`` (fastpath.py), which serves it in C with the GIL released
+and takes the scan lock (an :class:`~armbench.softplc.fastpath.ImageLock`) around each
+request; with a plain ``threading.Lock`` (or ``fast_path=False``) the thread runs
+``_serve_frames`` and :class:`PduHandler` below, the Python reference of every rule above
+(docs/modbus-parity.md, Performance).
 """
 
 from __future__ import annotations
@@ -56,6 +63,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final
 
+from .fastpath import FastConnection, ImageLock, ScanLock, new_scan_lock
 from .image import MD_OFFSET, ML_OFFSET, QW_OFFSET, ProcessImage
 from .modbus_map import (
     COIL_COUNT,
@@ -177,7 +185,7 @@ class PduHandler:
     """
 
     image: ProcessImage
-    lock: threading.Lock
+    lock: ScanLock
     _dispatch: dict[int, Callable[[bytes], bytes]] = field(init=False, repr=False)
     _md: _WideArea = field(init=False, repr=False)
     _ml: _WideArea = field(init=False, repr=False)
@@ -382,13 +390,19 @@ def non_loopback_warning(host: str, port: int) -> str | None:
 
 @dataclass(eq=False)
 class _Connection:
-    """One client connection; ``last_request`` is written by its own thread only."""
+    """One client connection; ``last_request`` is written by its own thread only (on the
+    compiled path, ``fast``'s C loop keeps the time instead)."""
 
     sock: socket.socket
     peer: str
     last_request: float  # time.monotonic() of the accept or of the last complete request
     thread: threading.Thread | None = None
     closing: bool = False  # shut down by the server: no longer counts towards max_clients
+    fast: FastConnection | None = None
+
+    def activity(self) -> float:
+        """time.monotonic() of the accept or of the last complete request."""
+        return self.fast.last_request if self.fast is not None else self.last_request
 
 
 class ModbusServer:
@@ -401,17 +415,24 @@ class ModbusServer:
     of an unfinished frame do not count, so a trickling or half-sent request does not keep it
     open); None or 0 turns the timeout off. ``max_clients``: open connections; when all are
     taken, a new client is accepted and the connection idle longest is closed to make room.
+
+    Requests run on the compiled path (``modbus_fast.c``: one C loop per connection, GIL
+    released) when ``lock`` is an :class:`ImageLock` -- the soft PLC's default scan lock, and
+    what the server makes for itself without one -- and ``fast_path`` is true; with a
+    ``threading.Lock`` or ``fast_path=False`` they run through :class:`PduHandler` in Python.
+    Both answer alike; :attr:`fast_path` says which one serves.
     """
 
     def __init__(
         self,
         image: ProcessImage,
-        lock: threading.Lock | None = None,
+        lock: ScanLock | None = None,
         *,
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         max_clients: int = DEFAULT_MAX_CLIENTS,
         idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
+        fast_path: bool = True,
     ) -> None:
         if max_clients < 1:
             raise ValueError(f"max_clients must be at least 1, not {max_clients}")
@@ -420,7 +441,11 @@ class ModbusServer:
                 f"idle timeout must be 0 (off) or a positive number of seconds, not "
                 f"{idle_timeout_s}"
             )
-        self.handler = PduHandler(image, lock if lock is not None else threading.Lock())
+        if lock is None:
+            lock = new_scan_lock() if fast_path else threading.Lock()
+        self.handler = PduHandler(image, lock)
+        self.image = image
+        self._image_lock = lock if fast_path and isinstance(lock, ImageLock) else None
         self.host = host
         self._requested_port = port
         self.max_clients = max_clients
@@ -435,6 +460,11 @@ class ModbusServer:
         self._clients_lock = threading.Lock()
         self._clients: list[_Connection] = []
         self._closing = threading.Event()
+
+    @property
+    def fast_path(self) -> bool:
+        """True when connections are served by the compiled request path."""
+        return self._image_lock is not None
 
     @property
     def port(self) -> int:
@@ -551,7 +581,7 @@ class ModbusServer:
             for client in self._clients:
                 if client.closing:
                     continue
-                last = client.last_request
+                last = client.activity()
                 if now - last >= timeout:
                     _log.info("closing connection from %s: no request for %.3g s",
                               client.peer, now - last)
@@ -571,7 +601,10 @@ class ModbusServer:
         except OSError:
             _log.exception("accept failed")
             return
-        client = _Connection(conn, f"{peer[0]}:{peer[1]}", time.monotonic())
+        now = time.monotonic()
+        client = _Connection(conn, f"{peer[0]}:{peer[1]}", now)
+        if self._image_lock is not None:
+            client.fast = FastConnection(self.image, self._image_lock, now)
         with self._clients_lock:
             if self._closing.is_set():
                 conn.close()
@@ -580,7 +613,7 @@ class ModbusServer:
             if len(open_clients) >= self.max_clients:
                 # Refusing the newcomer would let forgotten or hostile idle connections lock
                 # everyone out; the longest-idle one is the least likely to be in use.
-                victim = min(open_clients, key=lambda c: c.last_request)
+                victim = min(open_clients, key=lambda c: c.activity())
                 _log.info("%d connections open: closing the one idle longest (%s) for %s",
                           len(open_clients), victim.peer, client.peer)
                 self._shut_down(victim)
@@ -601,7 +634,12 @@ class ModbusServer:
 
     def _serve_connection(self, client: _Connection) -> None:
         try:
-            self._serve_frames(client)
+            if client.fast is not None:
+                # Returns when the peer closes, the framing is lost or the socket fails (an
+                # error code, no exception: there is nothing to answer in any of these).
+                client.fast.serve(client.sock.fileno())
+            else:
+                self._serve_frames(client)
         except OSError:
             pass  # peer reset, idle timeout or server shutdown: nothing to answer any more
         except Exception:

@@ -17,6 +17,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from .fastpath import ScanLock, new_scan_lock
 from .image import ProcessImage
 from .program import CompiledProgram, PlcFault, TaskSpec
 
@@ -170,7 +171,7 @@ class SoftPlc:
         self,
         program: CompiledProgram,
         *,
-        lock: threading.Lock | None = None,
+        lock: ScanLock | None = None,
         clock_ns: Callable[[], int] = time.perf_counter_ns,
         reservoir: int = DEFAULT_RESERVOIR,
     ) -> None:
@@ -184,7 +185,8 @@ class SoftPlc:
             if spec.interval_ns <= 0:
                 raise ValueError(f"task {spec.name}: interval must be positive")
         self.program = program
-        self.lock = lock if lock is not None else threading.Lock()
+        # An ImageLock by default: the Modbus server's compiled request path takes it too.
+        self.lock: ScanLock = lock if lock is not None else new_scan_lock()
         self._clock_ns = clock_ns
         self._reservoir = reservoir
         self._tasks = [_TaskRuntime(s, i, reservoir) for i, s in enumerate(specs)]
