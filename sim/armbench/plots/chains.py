@@ -10,7 +10,6 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -19,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from armbench.locate import LocateError, find_checkout
+from armbench.plots.cli import figure_target
 
 SOURCES = ["ArmAngles.st", "Kinematics.st", "KinematicsChain.st", "Kinematics4Axis.st"]
 
@@ -196,26 +195,12 @@ FIGURES: dict[str, Callable[[Any, Path], Path]] = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.chains")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        checkout = find_checkout(args.repo)
-    except LocateError as exc:
-        parser.error(str(exc))
-    out: Path = args.out or checkout.root / "docs" / "figures"
+    checkout, out = figure_target("armbench.plots.chains", argv)
 
-    import matplotlib
-
-    matplotlib.use("Agg")
 
     from armbench.compiler import compile_files
 
     module = compile_files([checkout.st_dir / name for name in SOURCES])
-    out.mkdir(parents=True, exist_ok=True)
     for make in FIGURES.values():
         print(f"wrote {make(module, out)}")
     return 0

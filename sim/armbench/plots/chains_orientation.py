@@ -16,18 +16,16 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from armbench.locate import LocateError, find_checkout
 from armbench.plant import redundant_chain as rc
+from armbench.plots.cli import figure_target
 
 FIGURES = ("chain-fixed-line-error.png", "orientation-ik-modes.png")
 GEO_5AXIS = {"Arm": {"A1": 100.0, "A2": 20.0, "A3": 120.0, "A4": 130.0}, "ToolMm": 60.0}
@@ -69,27 +67,13 @@ def arm_plane(module: Any, angles: dict[str, float]) -> NDArray[np.float64]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.chains_orientation")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        checkout = find_checkout(args.repo)
-    except LocateError as exc:
-        parser.error(str(exc))
-    out: Path = args.out or checkout.root / "docs" / "figures"
+    checkout, out = figure_target("armbench.plots.chains_orientation", argv)
 
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from armbench.compiler import compile_files
 
     module = compile_files(sorted(checkout.st_dir.glob("*.st")))
-    out.mkdir(parents=True, exist_ok=True)
 
     # --- document 003's line
     points = rc.line_points()

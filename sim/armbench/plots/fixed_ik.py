@@ -12,18 +12,16 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from armbench.locate import LocateError, find_checkout
 from armbench.plant import arm
+from armbench.plots.cli import figure_target
 
 SOURCES = ["ArmAngles.st", "Kinematics.st", "KinematicsFixed.st", "KinematicsFixedTables.st"]
 GEO_FIXED = {"A1Mm100": 10000, "A2Mm100": 2000, "A3Mm100": 12000, "A4Mm100": 13000}
@@ -84,27 +82,13 @@ def random_errors(module: Any, count: int = 10_000, seed: int = 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.fixed_ik")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        checkout = find_checkout(args.repo)
-    except LocateError as exc:
-        parser.error(str(exc))
-    args.out = args.out or checkout.root / "docs" / "figures"
+    checkout, out = figure_target("armbench.plots.fixed_ik", argv)
 
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from armbench.compiler import compile_files
 
     module = compile_files([checkout.st_dir / name for name in SOURCES])
-    args.out.mkdir(parents=True, exist_ok=True)
 
     xs, zs, err = plane_errors(module)
     fig, ax = plt.subplots(figsize=(7.0, 6.0))
@@ -116,7 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ax.set_title("InverseKinematikFixed vs float64, plane Y = 0, elbow up\n"
                  f"max {np.nanmax(err):.4f} deg, mean {np.nanmean(err):.4f} deg "
                  "(output step 0.01 deg)")
-    plane_png = args.out / "fixed-ik-error-plane.png"
+    plane_png = out / "fixed-ik-error-plane.png"
     fig.savefig(plane_png, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
@@ -131,7 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ax.set_ylabel("targets")
     ax.set_title(f"{len(errs)} random reachable targets, elbow up")
     ax.legend(fontsize=8)
-    hist_png = args.out / "fixed-ik-error-hist.png"
+    hist_png = out / "fixed-ik-error-hist.png"
     fig.savefig(hist_png, dpi=110, bbox_inches="tight")
     plt.close(fig)
     print(f"wrote {plane_png} and {hist_png}")

@@ -11,7 +11,6 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -22,8 +21,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from armbench.locate import LocateError, find_checkout
 from armbench.plant import arm
+from armbench.plots.cli import figure_target
 
 DT = 0.01  # s, the controller's task period
 GEO = arm.DEFAULT_GEOMETRY.as_st()
@@ -281,22 +280,11 @@ FIGURES: dict[str, Callable[[Any, Path], Path]] = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.motion")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        checkout = find_checkout(args.repo)
-    except LocateError as exc:
-        parser.error(str(exc))
-    out: Path = args.out or checkout.root / "docs" / "figures"
+    checkout, out = figure_target("armbench.plots.motion", argv)
 
     from armbench.compiler import compile_files
 
     module = compile_files(sorted(checkout.st_dir.glob("*.st")))
-    out.mkdir(parents=True, exist_ok=True)
     for make in FIGURES.values():
         print(f"wrote {make(module, out)}")
     return 0

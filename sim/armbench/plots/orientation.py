@@ -12,7 +12,6 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,11 +20,10 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from armbench.locate import LocateError, find_checkout
 from armbench.orientation import METHODS, FilterRun, quat_dict, quat_row, run_filter, st_samples
 from armbench.plant.imu import HandTrajectory, ImuModel, ImuRecord, quat_to_matrix, simulate
+from armbench.plots.cli import figure_target
 
-DEFAULT_OUT = Path("docs") / "figures"
 SEED = 11
 DURATION_S = 60.0
 RATE_HZ = 100.0
@@ -98,18 +96,7 @@ def make_runs(module: Any) -> tuple[ImuRecord, dict[str, FilterRun]]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.orientation")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        checkout = find_checkout(args.repo)
-    except LocateError as exc:
-        parser.error(str(exc))
-    out: Path = args.out or checkout.root / DEFAULT_OUT
-    out.mkdir(parents=True, exist_ok=True)
+    checkout, out = figure_target("armbench.plots.orientation", argv)
     from armbench.compiler import compile_files
 
     module = compile_files(sorted(checkout.st_dir.glob("*.st")))

@@ -11,7 +11,6 @@ Part of the plots package, the only one that imports matplotlib.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections.abc import Callable, Sequence
@@ -22,10 +21,9 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Arc, Circle
 
-from armbench.locate import LocateError, find_checkout
 from armbench.plant import arm
+from armbench.plots.cli import figure_target
 
-DEFAULT_OUT = Path("docs") / "figures"  # inside the checkout (armbench.locate.find_checkout)
 GEO = arm.DEFAULT_GEOMETRY
 
 # The sample pose of the frames figure and the target of the elbow-up/down figure.
@@ -295,17 +293,7 @@ FIGURES: dict[str, Callable[[Path], Path]] = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m armbench.plots.teaching")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="default: docs/figures/ of the checkout")
-    parser.add_argument("--repo", type=Path, default=None,
-                        help="the checkout (default: found from the current directory)")
-    args = parser.parse_args(argv)
-    try:
-        out: Path = args.out or find_checkout(args.repo).root / DEFAULT_OUT
-    except LocateError as exc:
-        parser.error(str(exc))
-    out.mkdir(parents=True, exist_ok=True)
+    _, out = figure_target("armbench.plots.teaching", argv)
     for make in FIGURES.values():
         print(f"wrote {make(out)}")
     return 0
