@@ -57,7 +57,11 @@ def test_linear_move_stays_on_the_line(plc: ArmControllerClient,
                    if s.ticket == plc.last_ticket)
     assert worst_cart <= bound_mm
     assert worst_fk <= bound_mm + 0.05  # float32 IK on the PLC vs the float64 reference FK
-    end = arm.forward(*run.samples[-1].out_deg)
+    # where the servos were sent once the motion is done: read now, since the recorder's last
+    # sample can be several scans old when the host starves its thread
+    final = plc.motion()
+    assert final.done and final.ticket == plc.last_ticket, final
+    end = arm.forward(*final.out_deg)
     assert np.linalg.norm(end - b) <= 0.05
     assert_slew_limited(run)
 
