@@ -1009,6 +1009,7 @@ class MotionRecorder:
         return self._thread is not None
 
     def start(self) -> None:
+        """Start sampling; returns when the first sample is in (or after 5 s)."""
         if self._thread is not None:
             raise RuntimeError("MotionRecorder.start: already recording")
         self._stop.clear()
@@ -1026,13 +1027,16 @@ class MotionRecorder:
             with PlcClient(self.host, self.port) as plc:
                 ctl = ArmControllerClient(plc)
                 last = -1
-                ready.set()
                 while not self._stop.is_set():
                     m = ctl.motion()
                     self._reads += 1
                     if m.scan != last:
                         self._samples.append(m)
                         last = m.scan
+                    # start() returns once a sample is in: a connection is not served the
+                    # moment it is accepted (OpenPLC's accept loop), and a motion started
+                    # before the first read would lose its first scans
+                    ready.set()
                     if self.poll_interval_s > 0.0:
                         time.sleep(self.poll_interval_s)
         except BaseException as exc:  # reported by stop(): a thread cannot raise to the test
