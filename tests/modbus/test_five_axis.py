@@ -13,6 +13,7 @@ reference, so each command has a known reachable answer.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -169,6 +170,22 @@ def test_three_joint_move_leaves_the_wrist(plc: ArmControllerClient) -> None:
     assert got[3:] == pytest.approx(wrist_before, abs=1e-6)
     flange, _ = fk(got)
     assert np.linalg.norm(flange[:3, 3] - np.array([150.0, 40.0, 120.0])) < POS_TOL_MM
+    # a straight line and a jog (the Cartesian blocks drive joints 1..3 only)
+    st = plc.move_linear((170.0, 0.0, 140.0), velocity=100.0, wait=True)
+    assert st.error_id == ERR_OK
+    got = reached(plc)
+    assert got[3:] == pytest.approx(wrist_before, abs=1e-6)
+    flange, _ = fk(got)
+    assert np.linalg.norm(flange[:3, 3] - np.array([170.0, 0.0, 140.0])) < POS_TOL_MM
+    assert plc.jog_start((0.0, 0.0, 1.0), max_speed=50.0, acceleration=500.0).error_id == ERR_OK
+    for _ in range(10):
+        plc.jog_update((0.0, 0.0, 1.0))
+        time.sleep(0.02)
+    plc.jog_stop()
+    plc.wait_motion()
+    got = reached(plc)
+    assert got[3:] == pytest.approx(wrist_before, abs=1e-6)
+    assert fk(got)[0][2, 3] > 140.0 + 1.0  # the jog did move the arm up
 
 
 def _snapshot(plc: ArmControllerClient) -> tuple[object, ...]:
