@@ -53,6 +53,13 @@ CMD_JOG_UPDATE = _K["CmdJogUpdate"]
 CMD_JOG_STOP = _K["CmdJogStop"]
 CMD_STOP = _K["CmdStop"]
 CMD_SET_MOTION_LIMITS = _K["CmdSetMotionLimits"]
+CMD_MOVE_TOOL_ANGLES = _K["CmdMoveToolAngles"]
+CMD_MOVE_TOOL_VECTOR = _K["CmdMoveToolVector"]
+FIVE_FLAG_ELBOW_DOWN = _K["FiveFlagElbowDown"]
+FIVE_FLAG_FLANGE_FIXED = _K["FiveFlagFlangeFixed"]
+FIVE_ROLL_MAX_100 = _K["FiveRollMax100"]
+JOINT_WRIST_PITCH = _K["JointWristPitch"]
+JOINT_WRIST_ROLL = _K["JointWristRoll"]
 KIND_JOINT = _K["KindJoint"]
 KIND_LINE = _K["KindLine"]
 KIND_JOG = _K["KindJog"]
@@ -75,6 +82,9 @@ ERR_NOT_BATCH_OWNER = _K["CtlErr.NotBatchOwner"]
 ERR_NOT_MOTION_OWNER = _K["CtlErr.NotMotionOwner"]
 ERR_JOG_TIMEOUT = _K["CtlErr.JogTimeout"]
 ERR_BAD_PARAMETER = _K["Err.BadParameter"]
+ERR_TOOL_OUT_OF_PLANE = _K["FiveErr.ToolOutOfPlane"]
+ERR_TOOL_VECTOR_ZERO = _K["FiveErr.ToolVectorZero"]
+ERR_FLANGE_UNREACHABLE = _K["FiveErr.FlangeUnreachable"]
 
 STATE_READY = _K["StateReady"]
 STATE_BUSY = _K["StateBusy"]
@@ -83,6 +93,7 @@ LEASE_SCANS = _K["MailboxLeaseScans"]
 MAX_SEQ = _K["MaxSeq"]
 
 JOINTS = ("Base", "Shoulder", "Elbow")  # SetCalibration Int1 0, 1, 2 = PCA9685 channels 0..2
+WRIST_JOINTS = ("WristPitch", "WristRoll")  # 5-axis arm: Int1 3, 4 = channels 3, 4
 
 # FC16 carries at most 123 registers and FC03 returns at most 125 (Modbus spec §6.12/§6.3).
 _MAX_WRITE_REGS = 123
@@ -109,6 +120,13 @@ _CAL_SUFFIXES = ("ZeroDeg", "Direction", "MinPulseUs", "MaxPulseUs", "MinAngleDe
 _LUT_FIELDS = ("LutSession", "LutSeq", "LutErrorId", "LutXMm100", "LutYMm100", "LutZMm100",
                "LutBaseDeg100", "LutShoulderDeg100", "LutElbowDeg100", "LutEchoXMm100",
                "LutEchoYMm100", "LutEchoZMm100", "LutSolves")
+_FIVE_FIELDS = ("FiveSession", "FiveSeq", "FiveErrorId", "FiveBaseDeg", "FiveShoulderDeg",
+                "FiveElbowDeg", "FiveWristPitchDeg", "FiveWristRollDeg", "FiveTipX", "FiveTipY",
+                "FiveTipZ", "FiveDirX", "FiveDirY", "FiveDirZ", "FiveToolPitchDeg",
+                "FiveToolRollDeg")
+_WRIST_FIELDS = ("SetWristPitchDeg", "SetWristRollDeg", "OutWristPitchDeg", "OutWristRollDeg",
+                 "WristPitchPulseUs", "WristRollPulseUs", "LimWristPitchVel", "LimWristRollVel",
+                 "LimWristPitchAcc", "LimWristRollAcc")
 # answers of commands that did not run (the LUT result block is then someone else's)
 _NOT_RUN = (ERR_BUSY, ERR_BAD_SEQUENCE, ERR_BAD_CHECK, ERR_UNKNOWN_COMMAND)
 # InverseKinematikFixed's input range: |coordinate| <= 1,000,000 x 0.01 mm (KinematicsFixed.st)
@@ -317,6 +335,32 @@ def lut_target_mm(value_mm100: int) -> float:
 
 
 @dataclass(frozen=True)
+class FiveAxisEcho:
+    """The 5-axis echo block: the last 5-axis command's session, seq and result, and the
+    joints of the last one that started with their ForwardKinematic5Axis."""
+
+    session: int
+    seq: int
+    error_id: int
+    joints_deg: tuple[float, float, float, float, float]  # base..elbow, wrist pitch, roll
+    tip_mm: Vec3
+    direction: Vec3  # unit tool direction
+    tool_pitch_deg: float
+    tool_roll_deg: float
+
+
+@dataclass(frozen=True)
+class WristSample:
+    """The wrist joints' motion layer (channels 3 and 4), one read."""
+
+    set_deg: tuple[float, float]  # group setpoints, pitch and roll
+    out_deg: tuple[float, float]  # slew limiter outputs = the servos' joint angles
+    pulses_us: tuple[float, float]  # 0 = off
+    max_vel_deg: tuple[float, float]
+    max_acc_deg: tuple[float, float]
+
+
+@dataclass(frozen=True)
 class Pending:
     """A command written to a mailbox and not yet answered."""
 
@@ -443,6 +487,9 @@ class ArmControllerClient:
         self._results = _Block.of(f"{p}{k:02d}" for k in range(1, self.batch_max + 1)
                                   for p in _RESULT_PREFIXES)
         self._lut = _Block.of(_LUT_FIELDS)
+        self._five = _Block.of(_FIVE_FIELDS)
+        self._wrist = _Block.of(_WRIST_FIELDS)
+        self._wrist_cal = _Block.of(f"{j}Cal{s}" for j in WRIST_JOINTS for s in _CAL_SUFFIXES)
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
@@ -831,6 +878,57 @@ class ArmControllerClient:
         c = astuple(cal)
         return self.command(CMD_SET_CALIBRATION, ints=(joint, int(c[1])),
                             args=(c[0], c[2], c[3], c[4], c[5]))
+
+    # -- 5-axis arm (codes 30..39: InverseKinematik5Axis, wrist on channels 3 and 4) -------
+
+    @staticmethod
+    def _five_flags(flange_fixed: bool, elbow_down: bool) -> int:
+        return (FIVE_FLAG_FLANGE_FIXED if flange_fixed else 0) | (
+            FIVE_FLAG_ELBOW_DOWN if elbow_down else 0)
+
+    def move_tool_angles(self, position: Vec3, pitch_deg: float, roll_deg: float, *,
+                         flange_fixed: bool = False, elbow_down: bool = False,
+                         wait: bool = False) -> Status:
+        """MoveToolAngles: the tool tip (or, ``flange_fixed``, the flange point) to
+        ``position`` (mm) with the tool pitched and rolled (deg), as one synchronised joint
+        move of all five joints; ``error_id`` 0 = started (see :meth:`five_axis_echo`)."""
+        return self._motion_command(CMD_MOVE_TOOL_ANGLES,
+                                    (self._five_flags(flange_fixed, elbow_down), 0),
+                                    (*position, pitch_deg, roll_deg), wait)
+
+    def move_tool_vector(self, position: Vec3, direction: Vec3, roll_deg: float = 0.0, *,
+                         flange_fixed: bool = False, elbow_down: bool = False,
+                         wait: bool = False) -> Status:
+        """MoveToolVector: as :meth:`move_tool_angles` with the tool direction (any length,
+        in the arm plane) and the roll; the roll travels in 0.01 deg steps."""
+        roll100 = round(roll_deg * 100.0)
+        if not abs(roll100) <= FIVE_ROLL_MAX_100:
+            raise ValueError(f"move_tool_vector: roll must lie within "
+                             f"+/-{FIVE_ROLL_MAX_100 / 100.0:g} deg, got {roll_deg}")
+        return self._motion_command(CMD_MOVE_TOOL_VECTOR,
+                                    (self._five_flags(flange_fixed, elbow_down), roll100),
+                                    (*position, *direction), wait)
+
+    def five_axis_echo(self) -> FiveAxisEcho:
+        """The 5-axis echo block (one read: a consistent snapshot)."""
+        v = self._five.decode(self._io(lambda: self._read(self._five.address, self._five.length),
+                                       time.monotonic() + self.timeout_s))
+        return FiveAxisEcho(int(v[0]), int(v[1]), int(v[2]), (v[3], v[4], v[5], v[6], v[7]),
+                            (v[8], v[9], v[10]), (v[11], v[12], v[13]), v[14], v[15])
+
+    def wrist(self) -> WristSample:
+        """The wrist joints' setpoints, servo angles, pulses and limits (one read)."""
+        v = self._wrist.decode(self._io(
+            lambda: self._read(self._wrist.address, self._wrist.length),
+            time.monotonic() + self.timeout_s))
+        return WristSample((v[0], v[1]), (v[2], v[3]), (v[4], v[5]), (v[6], v[7]), (v[8], v[9]))
+
+    def wrist_calibration(self) -> tuple[Calibration, Calibration]:
+        """The wrist pitch and roll servos' calibration (SetCalibration joints 3, 4)."""
+        v = self._wrist_cal.decode(self._read(self._wrist_cal.address, self._wrist_cal.length))
+        n = len(_CAL_SUFFIXES)
+        return (Calibration(v[0], int(v[1]), *v[2:n]),
+                Calibration(v[n], int(v[n + 1]), *v[n + 2: 2 * n]))
 
     # -- SolveBatch --------------------------------------------------------------------------
 

@@ -129,7 +129,12 @@ def test_pwm_counts_match_datasheet(plc: ArmControllerClient,
         pulse_us = 1500.0 + (angle - zero[ch]) * 1000.0 / 120.0  # MG996R: 1..2 ms = -60..+60
         assert st.pulses_us[ch] == pytest.approx(pulse_us, abs=1e-3)
         assert words[ch] == _datasheet_count(pulse_us), (ch, pulse_us)
-    assert words[3:] == [0x1000] * 13  # unused channels fully off
+    # channels 3, 4: the 5-axis arm's wrist, held where it stands by a 3-joint move
+    wrist = plc.wrist()
+    for ch, cal, angle in zip((3, 4), plc.wrist_calibration(), wrist.out_deg, strict=True):
+        pulse_us = 1500.0 + cal.direction * (angle - cal.zero_offset_deg) * 1000.0 / 120.0
+        assert words[ch] == _datasheet_count(pulse_us), (ch, pulse_us)
+    assert words[5:] == [0x1000] * 11  # unused channels fully off
 
 
 def test_relax_turns_all_channels_off(plc: ArmControllerClient) -> None:
@@ -197,7 +202,7 @@ def test_set_calibration_changes_the_pulses(plc: ArmControllerClient) -> None:
     (2, Calibration(max_pulse_us=25000.0), ERR_BAD_CALIBRATION),
     (0, Calibration(direction=0), ERR_BAD_CALIBRATION),
     (1, Calibration(zero_offset_deg=math.nan), ERR_NOT_FINITE),
-    (3, Calibration(), ERR_BAD_JOINT),
+    (5, Calibration(), ERR_BAD_JOINT),  # 0..2 the arm, 3..4 the wrist (5-AXIS)
     (-1, Calibration(), ERR_BAD_JOINT),
 ])
 def test_bad_calibration_is_rejected(plc: ArmControllerClient, joint: int, cal: Calibration,
