@@ -340,3 +340,20 @@ def test_motion_commands_from_the_page(web: WebView, running: RunningPlc) -> Non
     wait_for(lambda: read(running, "MotionErrorId") == 109, "the jog's dead-man stop",
              timeout_s=5.0)
     assert read(running, "MotionBusy") == 0
+
+
+def test_five_axis_command_from_the_page(web: WebView, other: ArmControllerClient) -> None:
+    """A tool pose sent from the page reaches the PLC through the handshake: the 5-axis echo
+    (the PLC's FK of the joints it moves to) is the commanded tip, pitch and roll."""
+    status, answer = post(web, {"name": "CmdMoveToolAngles", "fields": {
+        "x": 170, "y": 20, "z": 80, "pitch": -30, "roll": 15, "mode": 0}})
+    assert status == 200 and answer["ok"] and answer["result"] == 0, answer
+    echo = other.five_axis_echo()
+    assert echo.error_id == 0
+    assert echo.tip_mm == pytest.approx((170.0, 20.0, 80.0), abs=0.01)
+    assert (echo.tool_pitch_deg, echo.tool_roll_deg) == pytest.approx((-30.0, 15.0), abs=1e-3)
+    # the pitch as a direction: elevation of the unit tool vector
+    assert math.degrees(math.asin(echo.direction[2])) == pytest.approx(-30.0, abs=1e-3)
+    status, answer = post(web, {"name": "CmdMoveToolAngles", "fields": {
+        "x": 170, "y": 20, "z": 80, "pitch": -30, "roll": 15, "mode": 4}})
+    assert status == 400 and "Elbow / mode must be one of" in answer["message"], answer

@@ -82,6 +82,8 @@ class Prepared:
 _ELBOW = (0, "elbow up"), (1, "elbow down")
 _PROFILES = ((0, "constant speed per joint"), (1, "synchronised constant speed"),
              (2, "trapezoid"), (3, "jerk-limited"))
+_TOOL_MODES = ((0, "elbow up, tip fixed"), (1, "elbow down, tip fixed"),
+               (2, "elbow up, flange fixed"), (3, "elbow down, flange fixed"))
 _LINE_METHODS = ((0, "Bresenham (document 001)"), (1, "Bresenham + start compensation"),
                  (2, "time-scaled path"))
 
@@ -162,6 +164,27 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("speed", "Speed limit", "Arg1", default=150.0, unit="deg/s"),
                  Field("accel", "Acceleration limit", "Arg2", default=1000.0,
                        unit="deg/s^2"))),
+    CommandSpec("CmdMoveToolAngles", "Tool pose (pitch/roll)",
+                "5-axis arm: tool position plus pitch and roll (document 000), tip-fixed or "
+                "flange-fixed; a synchronised joint move of all five joints.",
+                (Field("x", "X", "Arg1", default=170.0, unit="mm"),
+                 Field("y", "Y", "Arg2", default=0.0, unit="mm"),
+                 Field("z", "Z", "Arg3", default=80.0, unit="mm"),
+                 Field("pitch", "Pitch", "Arg4", default=-30.0, unit="deg"),
+                 Field("roll", "Roll", "Arg5", default=0.0, unit="deg"),
+                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES))),
+    CommandSpec("CmdMoveToolVector", "Tool pose (direction)",
+                "5-axis arm: tool position plus a tool direction in the arm plane (document "
+                "004) and the roll in 0.01 deg.",
+                (Field("x", "X", "Arg1", default=170.0, unit="mm"),
+                 Field("y", "Y", "Arg2", default=0.0, unit="mm"),
+                 Field("z", "Z", "Arg3", default=80.0, unit="mm"),
+                 Field("dx", "Direction X", "Arg4", default=1.0),
+                 Field("dy", "Direction Y", "Arg5", default=0.0),
+                 Field("dz", "Direction Z", "Arg6", default=-0.5),
+                 Field("roll", "Roll", "Int2", "int", 0, unit="0.01 deg", low=-36000,
+                       high=36000),
+                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES))),
     CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
                 "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",
                 (Field("x", "X", "Arg1", default=150.0, unit="mm"),
