@@ -60,6 +60,16 @@ FIVE_FLAG_FLANGE_FIXED = _K["FiveFlagFlangeFixed"]
 FIVE_ROLL_MAX_100 = _K["FiveRollMax100"]
 JOINT_WRIST_PITCH = _K["JointWristPitch"]
 JOINT_WRIST_ROLL = _K["JointWristRoll"]
+# IMU commands 40..45 (issue #11; Controller.st IMU COMMANDS)
+CMD_IMU_SELECT_FILTER = _K["CmdImuSelectFilter"]
+CMD_IMU_SET_PERIOD = _K["CmdImuSetPeriod"]
+CMD_IMU_SET_GYRO_BIAS = _K["CmdImuSetGyroBias"]
+CMD_IMU_SET_ACCEL_SCALE = _K["CmdImuSetAccelScale"]
+CMD_IMU_SET_MAG_OFFSET = _K["CmdImuSetMagOffset"]
+CMD_IMU_RESET = _K["CmdImuReset"]
+IMU_FILTERS = {"gyro": _K["ImuFilterGyro"], "complementary": _K["ImuFilterCompl"],
+               "madgwick_imu": _K["ImuFilterMadgwick"], "madgwick_marg": _K["ImuFilterMarg"]}
+ERR_BAD_QUATERNION = _K["OErr.BadQuaternion"]
 KIND_JOINT = _K["KindJoint"]
 KIND_LINE = _K["KindLine"]
 KIND_JOG = _K["KindJog"]
@@ -131,6 +141,12 @@ _WRIST_FIELDS = ("SetWristPitchDeg", "SetWristRollDeg", "OutWristPitchDeg", "Out
 _NOT_RUN = (ERR_BUSY, ERR_BAD_SEQUENCE, ERR_BAD_CHECK, ERR_UNKNOWN_COMMAND)
 # InverseKinematikFixed's input range: |coordinate| <= 1,000,000 x 0.01 mm (KinematicsFixed.st)
 LUT_MAX_MM100 = 1_000_000
+_IMU_FIELDS = ("ImuSamples", "ImuErrorId", "ImuRejected", "ImuMissed", "ImuQuatW", "ImuQuatX",
+               "ImuQuatY", "ImuQuatZ", "ImuRollDeg", "ImuPitchDeg", "ImuYawDeg", "ImuToolX",
+               "ImuToolY", "ImuToolZ", "ImuFilter", "ImuGain", "ImuPeriodS", "ImuGyroBiasX",
+               "ImuGyroBiasY", "ImuGyroBiasZ", "ImuAccelScaleX", "ImuAccelScaleY",
+               "ImuAccelScaleZ", "ImuMagOffsetX", "ImuMagOffsetY", "ImuMagOffsetZ",
+               "ImuLastSeq")
 _RESULT_PREFIXES = ("ResBase", "ResShoulder", "ResElbow", "ResX", "ResY", "ResZ", "ResErrorId")
 
 # Between two looks at the answer, the client re-reads its command block this often (s): a
@@ -322,6 +338,34 @@ class LutBatchPoint:
     error_id: int
 
 
+@dataclass(frozen=True)
+class ImuState:
+    """The IMU result block (%MD850..876): the fused orientation and the settings in use."""
+
+    samples: int  # samples filtered since the last reset
+    error_id: int  # the filter's ErrorId for the last sample, 0 ok
+    rejected: int
+    missed: int  # samples the PLC never saw (the counter jumped)
+    quat: tuple[float, float, float, float]  # W, X, Y, Z: sensor to earth
+    rpy_deg: tuple[float, float, float]  # Z-Y-X roll, pitch, yaw
+    tool: tuple[float, float, float]  # body X axis in the earth frame
+    filter: int  # IMU_FILTERS value
+    gain: float  # F or beta (rad/s)
+    period_s: float
+    gyro_bias_dps: tuple[float, float, float]
+    accel_scale: tuple[float, float, float]
+    mag_offset_gauss: tuple[float, float, float]
+    last_seq: int  # ImuSampleSeq of the last filtered sample
+
+    @classmethod
+    def decode(cls, v: Sequence[float]) -> ImuState:
+        def v3(k: int) -> tuple[float, float, float]:
+            return (float(v[k]), float(v[k + 1]), float(v[k + 2]))
+        return cls(int(v[0]), int(v[1]), int(v[2]), int(v[3]),
+                   (float(v[4]), float(v[5]), float(v[6]), float(v[7])), v3(8), v3(11),
+                   int(v[14]), float(v[15]), float(v[16]), v3(17), v3(20), v3(23), int(v[26]))
+
+
 def lut_target_mm(value_mm100: int) -> float:
     """The REAL (mm) that carries a 0.01 mm integer to the PLC: value / 100. The PLC's
     REAL_TO_DINT(mm * 100.0) gives the integer back exactly for every |value| <= 1,000,000
@@ -490,6 +534,7 @@ class ArmControllerClient:
         self._five = _Block.of(_FIVE_FIELDS)
         self._wrist = _Block.of(_WRIST_FIELDS)
         self._wrist_cal = _Block.of(f"{j}Cal{s}" for j in WRIST_JOINTS for s in _CAL_SUFFIXES)
+        self._imu = _Block.of(_IMU_FIELDS)
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
@@ -1057,6 +1102,44 @@ class ArmControllerClient:
                     out.append(LutBatchPoint((deg[0], deg[1], deg[2]),
                                              (mm100[0], mm100[1], mm100[2]), p.error_id))
         return out
+
+    # ----- IMU (issue #11): commands 40..45 and the result block -----
+    def imu_state(self) -> ImuState:
+        """The IMU result block as it is now (one read: a consistent snapshot)."""
+        return ImuState.decode(self._imu.decode(self._read(self._imu.address,
+                                                           self._imu.length)))
+
+    def imu_select_filter(self, method: str, gain: float = 0.0) -> int:
+        """ImuSelectFilter: ``method`` one of IMU_FILTERS' names, ``gain`` F or beta (0.0 =
+        the filter's default); restarts the filter from the sensors. Returns the Result."""
+        if method not in IMU_FILTERS:
+            raise ValueError(f"unknown IMU filter {method!r}; choose one of "
+                             f"{', '.join(IMU_FILTERS)}")
+        return self.command(CMD_IMU_SELECT_FILTER, ints=(IMU_FILTERS[method], 0),
+                            args=(gain,)).error_id
+
+    def imu_set_period(self, period_s: float) -> int:
+        """ImuSetPeriod: the time between two samples, s (0 < period <= 1)."""
+        return self.command(CMD_IMU_SET_PERIOD, args=(period_s,)).error_id
+
+    def imu_set_gyro_bias(self, bias_dps: Sequence[float]) -> int:
+        """ImuSetGyroBias: deg/s subtracted from each gyro axis."""
+        return self.command(CMD_IMU_SET_GYRO_BIAS, args=tuple(bias_dps)).error_id
+
+    def imu_set_accel_scale(self, scale: Sequence[float]) -> int:
+        """ImuSetAccelScale: factors (0.5..2) applied to each accelerometer axis."""
+        return self.command(CMD_IMU_SET_ACCEL_SCALE, args=tuple(scale)).error_id
+
+    def imu_set_mag_offset(self, offset_gauss: Sequence[float]) -> int:
+        """ImuSetMagOffset: the hard-iron offset, gauss, subtracted from each axis."""
+        return self.command(CMD_IMU_SET_MAG_OFFSET, args=tuple(offset_gauss)).error_id
+
+    def imu_reset(self, quat: Sequence[float] | None = None) -> int:
+        """ImuReset: restart the filter at ``quat`` (W, X, Y, Z), or from the sensors."""
+        if quat is None:
+            return self.command(CMD_IMU_RESET, ints=(0, 1)).error_id
+        return self.command(CMD_IMU_RESET, ints=(0, 0), args=tuple(quat)).error_id
+
 
 @dataclass
 class MotionRecording:

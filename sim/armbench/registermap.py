@@ -233,7 +233,7 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "",
         "```text",
         *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "MOTION", "RESULT CODES",
-                           "LUT COMMANDS")),
+                           "LUT COMMANDS", "IMU COMMANDS")),
         "```",
         "",
         *_example({r.name.upper(): r for r in regs}),

@@ -95,17 +95,20 @@ def test_move_xyz_moves_setpoints_and_plant(web: WebView, running: RunningPlc) -
 
     def settled() -> bool:
         s = get(web, "api/state")
-        return (s["joints"]["plc"] == pytest.approx(expected, abs=1e-3)
+        # MoveXyz is a motion of many scans: the PWM words change until the PLC says done
+        return (read(running, "MotionBusy") == 0
+                and s["joints"]["plc"] == pytest.approx(expected, abs=1e-3)
                 and s["joints"]["plant"] == pytest.approx(expected, abs=PWM_STEP_DEG)
                 and not any(s["plant"]["moving"]))
     wait_for(settled, "the plant to follow the MoveXyz")
+    # the view polls: its next snapshot after the motion ended shows the final words
+    wait_for(lambda: [c["word"] for c in get(web, "api/state")["channels"][:3]]
+             == channel_words(running)[:3], "the view's channel words to be the PLC's")
     s = get(web, "api/state")
     assert s["points"]["plc"][3] == pytest.approx(target, abs=0.01)
     # the achieved tool point: within what the PWM step allows (demo: 1.6 mm)
     assert math.dist(s["points"]["plant"][3], target) < 2.5
     assert s["plant"]["pca_running"] and s["controller"]["pwm_ready"]
-    for ch in range(3):
-        assert s["channels"][ch]["word"] == channel_words(running)[ch]
 
 
 @pytest.mark.parametrize("fields, message", [
