@@ -13,14 +13,13 @@ from __future__ import annotations
 
 import math
 import struct
-import threading
-import time
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import pytest
+from fast_plc import FastPlc
 
 from armbench.controller_client import (
     CMD_IMU_RESET,
@@ -38,59 +37,28 @@ from armbench.plant.imu import (
     simulate,
 )
 from armbench.plant.imu_feed import ImuFeeder
-from armbench.registermap import SOURCES, controller_map
-from armbench.softplc.loader import load_program
+from armbench.registermap import controller_map
 from armbench.softplc.modbus_client import PlcClient
-from armbench.softplc.modbus_server import ModbusServer
-from armbench.softplc.scan import SoftPlc
 
 ahrs_filters = pytest.importorskip("ahrs.filters")
 
-TASK_NS = 10_000_000
 AGREEMENT_TOL = 2.0e-6  # per quaternion component, as tests/unit/test_orientation_filters.py
 RATE_HZ = 100.0
 
 
-@dataclass
-class Bench:
-    plc: SoftPlc
-    address: tuple[str, int]
-
-
 @pytest.fixture(scope="module")
-def bench() -> Iterator[Bench]:
-    prog = load_program(list(SOURCES))
-    plc = SoftPlc(prog)
-    server = ModbusServer(prog.image, plc.lock, port=0)
-    server.start()
-    stop = threading.Event()
-
-    def run() -> None:
-        now = 0
-        plc.run()
-        while not stop.is_set():
-            plc.step(now)
-            now += TASK_NS
-            time.sleep(0.0002)
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    try:
-        yield Bench(plc, ("127.0.0.1", server.port))
-    finally:
-        stop.set()
-        thread.join(5.0)
-        server.stop()
+def bench(fast_controller: FastPlc) -> FastPlc:
+    return fast_controller
 
 
 @pytest.fixture()
-def ctl(bench: Bench) -> Iterator[ArmControllerClient]:
+def ctl(bench: FastPlc) -> Iterator[ArmControllerClient]:
     with PlcClient(*bench.address) as modbus, ArmControllerClient(modbus) as c:
         yield c
 
 
 @pytest.fixture()
-def feeder(bench: Bench) -> ImuFeeder:
+def feeder(bench: FastPlc) -> ImuFeeder:
     f = ImuFeeder(bench.plc.image, bench.plc.lock)
     with bench.plc.lock:  # continue the counter where an earlier test left it
         f.seq = bench.plc.image.iw[controller_map()["IMUSAMPLESEQ"].index]
@@ -106,14 +74,14 @@ _QUAT_MD = tuple(controller_map()[n].index for n in ("IMUQUATW", "IMUQUATX", "IM
                                                        "IMUQUATZ"))
 
 
-def plc_quat(bench: Bench) -> np.ndarray:
+def plc_quat(bench: FastPlc) -> np.ndarray:
     """The PLC's quaternion straight from the image (stable between two samples)."""
     with bench.plc.lock:
         words = [bench.plc.image.md[i] for i in _QUAT_MD]
     return np.array(struct.unpack("<4f", struct.pack("<4I", *words)), dtype=np.float64)
 
 
-def run_plc(bench: Bench, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord,
+def run_plc(bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord,
             method: str, gain: float, *, raw: dict[str, np.ndarray] | None = None
             ) -> np.ndarray:
     """Start ``method`` at the true start orientation, feed samples 1..N-1; quaternion per
@@ -143,7 +111,7 @@ def float32_physical(record: ImuRecord) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 @pytest.mark.parametrize(("method", "beta"), [("madgwick_imu", 0.033), ("madgwick_marg", 0.041),
                                               ("madgwick_marg", 0.2)])
-def test_plc_madgwick_matches_ahrs(bench: Bench, ctl: ArmControllerClient, feeder: ImuFeeder,
+def test_plc_madgwick_matches_ahrs(bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
                                    record: ImuRecord, method: str, beta: float) -> None:
     gyro, accel, mag = float32_physical(record)
     # ahrs skips the update when all three rates are exactly 0; the trajectory never rests
@@ -167,7 +135,7 @@ def test_plc_madgwick_matches_ahrs(bench: Bench, ctl: ArmControllerClient, feede
     assert diff.max() < AGREEMENT_TOL
 
 
-def test_marg_stays_bounded_while_gyro_only_drifts(bench: Bench, ctl: ArmControllerClient,
+def test_marg_stays_bounded_while_gyro_only_drifts(bench: FastPlc, ctl: ArmControllerClient,
                                                    feeder: ImuFeeder, record: ImuRecord) -> None:
     gyro = angle_between_deg(run_plc(bench, ctl, feeder, record, "gyro", 0.0), record.quat_true)
     marg = angle_between_deg(run_plc(bench, ctl, feeder, record, "madgwick_marg", 0.041),
@@ -183,7 +151,7 @@ def test_marg_stays_bounded_while_gyro_only_drifts(bench: Bench, ctl: ArmControl
     assert marg[half:].max() <= marg[:half].max() + 0.5
 
 
-def test_gyro_bias_calibration_takes_effect(bench: Bench, ctl: ArmControllerClient,
+def test_gyro_bias_calibration_takes_effect(bench: FastPlc, ctl: ArmControllerClient,
                                             feeder: ImuFeeder, record: ImuRecord) -> None:
     raw_err = angle_between_deg(run_plc(bench, ctl, feeder, record, "gyro", 0.0),
                                 record.quat_true)[-1]
@@ -207,7 +175,7 @@ def _tampered(record: ImuRecord, accel_gain: float, mag_offset_lsb: np.ndarray
 
 
 def test_accel_scale_and_hard_iron_calibration_take_effect(
-        bench: Bench, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord) -> None:
+        bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord) -> None:
     short = replace(record, t=record.t[:800], quat_true=record.quat_true[:800],
                     gyro_true_dps=record.gyro_true_dps[:800],
                     gyro_bias_dps=record.gyro_bias_dps[:800], gyro_raw=record.gyro_raw[:800],
@@ -266,7 +234,7 @@ def test_bad_filter_and_free_codes(ctl: ArmControllerClient) -> None:
 
 
 @pytest.mark.parametrize("method", ["gyro", "complementary", "madgwick_imu", "madgwick_marg"])
-def test_zero_and_saturated_samples_never_give_nan(bench: Bench, ctl: ArmControllerClient,
+def test_zero_and_saturated_samples_never_give_nan(bench: FastPlc, ctl: ArmControllerClient,
                                                    feeder: ImuFeeder, record: ImuRecord,
                                                    method: str) -> None:
     assert ctl.imu_select_filter(method) == ERR_OK
@@ -293,7 +261,7 @@ def test_zero_and_saturated_samples_never_give_nan(bench: Bench, ctl: ArmControl
     assert ctl.imu_state().rejected == len(bad_samples) - (method == "gyro")
 
 
-def test_counter_jumps_count_missed_samples(bench: Bench, ctl: ArmControllerClient,
+def test_counter_jumps_count_missed_samples(bench: FastPlc, ctl: ArmControllerClient,
                                             feeder: ImuFeeder, record: ImuRecord) -> None:
     assert ctl.imu_reset() == ERR_OK
     raw = [*map(int, record.gyro_raw[1]), *map(int, record.accel_raw[1]),

@@ -4,11 +4,10 @@ second of wall time. Not part of the Modbus suite: a real PLC takes the full 10 
 
 from __future__ import annotations
 
-import threading
 import time
-from collections.abc import Iterator
 
 import pytest
+from fast_plc import FastPlc
 
 from armbench.controller_client import (
     CMD_MOVE_JOINTS,
@@ -18,39 +17,12 @@ from armbench.controller_client import (
     ArmControllerClient,
     HandshakeLost,
 )
-from armbench.registermap import SOURCES
-from armbench.softplc.loader import load_program
 from armbench.softplc.modbus_client import PlcClient
-from armbench.softplc.modbus_server import ModbusServer
-from armbench.softplc.scan import SoftPlc
-
-TASK_NS = 10_000_000
 
 
 @pytest.fixture(scope="module")
-def fast_plc() -> Iterator[tuple[str, int]]:
-    prog = load_program(list(SOURCES))
-    plc = SoftPlc(prog)
-    server = ModbusServer(prog.image, plc.lock, port=0)
-    server.start()
-    stop = threading.Event()
-
-    def run() -> None:
-        now = 0
-        plc.run()
-        while not stop.is_set():
-            plc.step(now)
-            now += TASK_NS
-            time.sleep(0.0002)  # about 5,000 scans/s: room for the Modbus threads
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    try:
-        yield "127.0.0.1", server.port
-    finally:
-        stop.set()
-        thread.join(5.0)
-        server.stop()
+def fast_plc(fast_controller: FastPlc) -> tuple[str, int]:
+    return fast_controller.address
 
 
 def test_silent_owner_loses_mailbox_and_batch_buffer(fast_plc: tuple[str, int]) -> None:
