@@ -31,7 +31,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -41,6 +40,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from pathlib import Path
+
+from modbus_tps import free_port, pin  # the bench folder: run as a script
 
 try:
     from armbench.registermap import SOURCES, controller_map
@@ -63,18 +64,6 @@ def build_client(out_dir: Path) -> Path:
     exe = out_dir / "modbus_pairs"
     subprocess.run([cc, "-O2", "-std=c11", "-o", str(exe), str(CLIENT_SOURCE)], check=True)
     return exe
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-def pin(cpus: set[int] | None) -> None:
-    if cpus is not None:
-        os.sched_setaffinity(0, cpus)
 
 
 def serve_soft_plc(conn: Connection, fast: bool, cpus: set[int] | None) -> None:

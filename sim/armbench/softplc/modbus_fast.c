@@ -240,39 +240,26 @@ static size_t write_coils(uint8_t *img, mb_lock *lock, const uint8_t *pdu, size_
     return echo5(out, pdu);
 }
 
-static size_t read_holding(uint8_t *img, mb_lock *lock, const uint8_t *pdu, size_t n,
-                           uint8_t *out) {
-    if (n < 5) return exception(out, pdu[0], ILLEGAL_DATA_VALUE);
-    unsigned start = be16(pdu + 1), count = be16(pdu + 3);
-    out[0] = pdu[0];
-    out[1] = 0;
-    if (count == 0) return 2;
-    if (count > MAX_REGISTERS || start + count > HOLDING_REGISTER_COUNT)
-        return exception(out, pdu[0], ILLEGAL_DATA_ADDRESS);
-    mb_lock_acquire(lock, -1.0);
-    for (unsigned i = 0; i < count; i++) {
-        uint16_t w = holding_get(img, start + i);
-        out[2 + 2 * i] = (uint8_t)(w >> 8);
-        out[3 + 2 * i] = (uint8_t)w;
-    }
-    mb_lock_release(lock);
-    out[1] = (uint8_t)(2 * count);
-    return 2 + 2 * count;
+static uint16_t input_get(const uint8_t *img, unsigned r) {
+    uint16_t w;
+    memcpy(&w, img + IW_OFFSET + 2 * r, 2);
+    return w;
 }
 
-static size_t read_input(uint8_t *img, mb_lock *lock, const uint8_t *pdu, size_t n,
-                         uint8_t *out) {
+/* FC3/FC4: registers start..start+count-1 of a table of `size`, read by `get`. */
+static size_t read_words(uint8_t *img, mb_lock *lock, const uint8_t *pdu, size_t n,
+                         uint8_t *out, unsigned size,
+                         uint16_t (*get)(const uint8_t *, unsigned)) {
     if (n < 5) return exception(out, pdu[0], ILLEGAL_DATA_VALUE);
     unsigned start = be16(pdu + 1), count = be16(pdu + 3);
     out[0] = pdu[0];
     out[1] = 0;
     if (count == 0) return 2;
-    if (count > MAX_REGISTERS || start + count > INPUT_REGISTER_COUNT)
+    if (count > MAX_REGISTERS || start + count > size)
         return exception(out, pdu[0], ILLEGAL_DATA_ADDRESS);
     mb_lock_acquire(lock, -1.0);
     for (unsigned i = 0; i < count; i++) {
-        uint16_t w;
-        memcpy(&w, img + IW_OFFSET + 2 * (start + i), 2);
+        uint16_t w = get(img, start + i);
         out[2 + 2 * i] = (uint8_t)(w >> 8);
         out[3 + 2 * i] = (uint8_t)w;
     }
@@ -319,8 +306,8 @@ size_t mb_handle(uint8_t *img, mb_lock *lock, const uint8_t *pdu, size_t n, uint
     switch (pdu[0]) {
     case 1: return read_bits(img, lock, pdu, n, out, QX_OFFSET, COIL_COUNT);
     case 2: return read_bits(img, lock, pdu, n, out, IX_OFFSET, DISCRETE_INPUT_COUNT);
-    case 3: return read_holding(img, lock, pdu, n, out);
-    case 4: return read_input(img, lock, pdu, n, out);
+    case 3: return read_words(img, lock, pdu, n, out, HOLDING_REGISTER_COUNT, holding_get);
+    case 4: return read_words(img, lock, pdu, n, out, INPUT_REGISTER_COUNT, input_get);
     case 5: return write_coil(img, lock, pdu, n, out);
     case 6: return write_register(img, lock, pdu, n, out);
     case 15: return write_coils(img, lock, pdu, n, out);
