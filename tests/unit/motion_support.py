@@ -78,6 +78,14 @@ class GroupSim:
     def snapshot(self) -> dict[str, Any]:
         return copy.deepcopy(self.group)
 
+    def assert_rejected(self, fb: Any, code: int, **inputs: Any) -> None:
+        """One scan of ``fb`` with bad ``inputs``: Error with ``code``, not Busy, and the
+        group exactly as before (bad input changes nothing)."""
+        before = self.snapshot()
+        self.scan(fb, **inputs)
+        assert fb.Error and fb.ErrorId == code and not fb.Busy
+        assert self.group == before
+
     def pos(self) -> np.ndarray:
         return np.array(self.positions)
 

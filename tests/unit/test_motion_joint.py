@@ -177,12 +177,8 @@ BAD_MOVES: list[tuple[str, dict[str, Any], int]] = [
 @pytest.mark.parametrize(("change", "code"), [(c, k) for _, c, k in BAD_MOVES],
                          ids=[n for n, _, _ in BAD_MOVES])
 def test_bad_input_changes_nothing(st_module: Any, change: dict[str, Any], code: int) -> None:
-    sim = new_sim()
-    fb = st_module.new_fb("MotionJointMove")
-    before = sim.snapshot()
-    sim.scan(fb, **{**move_inputs(TARGET, 2), **change})
-    assert fb.Error and fb.ErrorId == code and not fb.Busy
-    assert sim.group == before
+    new_sim().assert_rejected(st_module.new_fb("MotionJointMove"), code,
+                              **{**move_inputs(TARGET, 2), **change})
 
 
 @pytest.mark.parametrize(("name", "edit", "code"), [
