@@ -67,6 +67,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0407": ("unknown parameter", "use a parameter the POU declares"),
     "E0408": ("FB output written from outside", "read FB outputs; set inputs only"),
     "E0409": ("missing argument", "pass every input: missing ones are silently zero in MatIEC"),
+    "E0410": ("call of a STRUCT-returning FUNCTION with outputs",
+              "in a FUNCTION_BLOCK or PROGRAM, call only STRUCT-returning FUNCTIONs without "
+              "VAR_OUTPUT/VAR_IN_OUT: return BOOL and pass the STRUCT as VAR_IN_OUT, or call it "
+              "from a FUNCTION"),
     "E0500": ("array bound is not a literal", "write literal bounds: ARRAY[0..3]"),
     "E0501": ("ARRAY OF ARRAY", "use a multi-dimensional array ARRAY[a..b, c..d]"),
     "E0502": ("ARRAY of FB instances", "declare the instances one by one"),

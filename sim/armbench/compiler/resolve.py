@@ -688,7 +688,23 @@ class Checker(Declarations):
         if self.cur is not None:
             self.call_graph.setdefault(self.cur.key, set()).add(key)
             self.call_sites.setdefault((self.cur.key, key), c.pos)
+            self.check_struct_return_call(c, sym)
         return self.bind(c, sym, "function", sym.return_type or ERROR_T)
+
+    def check_struct_return_call(self, c: A.Call, sym: PouSym) -> None:
+        # iec2c accepts this call, but in a FUNCTION_BLOCK or PROGRAM body it wraps it in a
+        # C helper whose return type it spells from the STRUCT's field list, which g++ then
+        # rejects; inside a FUNCTION the call compiles (measured on OpenPLC v3 @ bb35f69).
+        assert self.cur is not None
+        if self.cur.kind == "FUNCTION" or not isinstance(sym.return_type, StructType):
+            return
+        outs = [p.name for p in sym.params() if p.kind in (A.VAR_OUTPUT, A.VAR_IN_OUT)]
+        if outs:
+            where = self.cur.kind.replace("_", " ")
+            self.d.error(c.pos, "E0410", f"{sym.name} returns the STRUCT "
+                         f"{sym.return_type.name} and has VAR_OUTPUT/VAR_IN_OUT '{outs[0]}': "
+                         f"OpenPLC's C build fails on such a call in a {where} (it compiles "
+                         "only inside a FUNCTION)")
 
     def bind(self, c: A.Call, sym: PouSym, kind: str, result: Type) -> Type:
         params = sym.params()
