@@ -14,14 +14,14 @@ import pytest
 
 from armbench.plant.pca9685 import PCA9685, I2CNackError
 
-PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "pca9685_psm.py"
+PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "arm_io_psm.py"
 OSC = 25_000_000.0
 ADDR = 0x40
 
 
 def load_psm() -> ModuleType:
     # The script is not in a package: load it by path, the way OpenPLC runs it as a file.
-    spec = importlib.util.spec_from_file_location("pca9685_psm", PSM_PATH)
+    spec = importlib.util.spec_from_file_location("arm_io_psm", PSM_PATH)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses look their module up while building

@@ -1,0 +1,110 @@
+"""The whole IMU input chain a Raspberry Pi runs, on the bench: chip registers (MPU6050 and
+HMC5883L models) -> the PSM's ImuReader (plc_project/psm/arm_io_psm.py) -> the soft PLC's
+input words, exactly where OpenPLC's PSM layer puts them -> the controller's Madgwick MARG.
+
+Reference: the ``ahrs`` package's Madgwick.updateMARG on the simulator's samples, converted in
+float32 as ImuRawToSample does. A wrong register, byte order or axis order anywhere on the way
+(the HMC5883L sends X, Z, Y) breaks the agreement by far more than float32 rounding.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+from fast_plc import FastPlc
+
+from armbench.controller_client import ERR_OK, ArmControllerClient
+from armbench.plant.imu import HandTrajectory, ImuModel, simulate
+from armbench.plant.imu_chips import Gy87Board
+from armbench.registermap import controller_map
+from armbench.softplc.modbus_client import PlcClient
+
+ahrs_filters = pytest.importorskip("ahrs.filters")
+
+PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "arm_io_psm.py"
+AGREEMENT_TOL = 2.0e-6  # per quaternion component, as tests/controller/test_imu.py
+BETA = 0.041
+
+
+def load_psm() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("arm_io_psm_chain", PSM_PATH)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@dataclass
+class PlcInputs:
+    """psm.get_var/set_var on the soft PLC's input words (what OpenPLC's PSM layer feeds)."""
+
+    bench: FastPlc
+
+    def get_var(self, name: str) -> object:
+        with self.bench.plc.lock:
+            return self.bench.plc.image.iw[int(name.removeprefix("IW"))]
+
+    def set_var(self, name: str, value: object) -> None:
+        start = int(name.removeprefix("IW"))
+        values = value if isinstance(value, list) else [value]
+        with self.bench.plc.lock:  # the runtime copies the PSM's words between two scans
+            for i, v in enumerate(values):
+                self.bench.plc.image.iw[start + i] = int(v)
+
+
+def test_chip_registers_to_controller_filter(fast_controller: FastPlc) -> None:
+    psm = load_psm()
+    record = simulate(HandTrajectory(), ImuModel(), duration_s=4.0, rate_hz=50.0, seed=5)
+    m = record.model
+
+    def conv(raw: np.ndarray, lsb: float) -> np.ndarray:
+        return (raw.astype(np.float32) / np.float32(lsb) - np.float32(0.0)).astype(np.float64)
+    gyro = conv(record.gyro_raw, m.gyro_lsb_per_dps)
+    accel = conv(record.accel_raw, m.accel_lsb_per_g)
+    mag = conv(record.mag_raw, m.mag_lsb_per_gauss)
+
+    board = Gy87Board()
+    inputs = PlcInputs(fast_controller)
+    taken_md = controller_map()["IMULASTSEQ"].index
+    quat_md = [controller_map()[n].index for n in ("IMUQUATW", "IMUQUATX", "IMUQUATY",
+                                                    "IMUQUATZ")]
+    reader = psm.ImuReader(bus=board, plc=inputs, period_s=record.period_s,
+                           sleep=lambda _s: None, log=lambda _m: None)
+    with inputs.bench.plc.lock:  # continue the counter where an earlier test left it
+        reader.seq = inputs.bench.plc.image.iw[9]
+    with PlcClient(*fast_controller.address) as modbus, ArmControllerClient(modbus) as ctl:
+        assert ctl.imu_select_filter("madgwick_marg", BETA) == ERR_OK
+        assert ctl.imu_set_period(record.period_s) == ERR_OK
+        assert ctl.imu_reset(tuple(record.quat_true[0])) == ERR_OK
+        assert reader.initialise() is None  # wakes the chips; no sample published yet
+
+        mw = ahrs_filters.Madgwick(Dt=record.period_s, gain=BETA)
+        q = record.quat_true[0].copy()
+        worst = 0.0
+        for k in range(1, len(record)):
+            board.load(record.gyro_raw[k], record.accel_raw[k], record.mag_raw[k])
+            assert reader.poll(float(record.t[k]))
+            deadline = time.monotonic() + 5.0
+            while True:
+                with inputs.bench.plc.lock:
+                    if inputs.bench.plc.image.md[taken_md] == reader.seq:
+                        words = [inputs.bench.plc.image.md[i] for i in quat_md]
+                        break
+                assert time.monotonic() < deadline, "the PLC did not take the PSM's sample"
+                time.sleep(0.0005)
+            got = np.frombuffer(np.array(words, dtype=np.uint32).tobytes(), dtype=np.float32)
+            q = mw.updateMARG(q, np.radians(gyro[k]), accel[k], mag[k])
+            worst = max(worst, float(np.abs(got.astype(np.float64) - q).max()))
+        st = ctl.imu_state()
+    print(f"\nchip registers -> PSM -> PLC Madgwick MARG vs ahrs, {len(record) - 1} samples: "
+          f"max |dq| {worst:.2e}")
+    assert st.samples == len(record) - 1 and st.missed == 0 and st.error_id == ERR_OK
+    assert worst < AGREEMENT_TOL
