@@ -9,12 +9,8 @@ float32 as ImuRawToSample does. A wrong register, byte order or axis order anywh
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -25,21 +21,14 @@ from armbench.plant.imu import HandTrajectory, ImuModel, simulate
 from armbench.plant.imu_chips import Gy87Board
 from armbench.registermap import controller_map
 from armbench.softplc.modbus_client import PlcClient
+from psm_script import load_psm_script
 
 ahrs_filters = pytest.importorskip("ahrs.filters")
 
-PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "arm_io_psm.py"
 AGREEMENT_TOL = 2.0e-6  # per quaternion component, as tests/controller/test_imu.py
 BETA = 0.041
 
 
-def load_psm() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("arm_io_psm_chain", PSM_PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 @dataclass
@@ -61,7 +50,7 @@ class PlcInputs:
 
 
 def test_chip_registers_to_controller_filter(fast_controller: FastPlc) -> None:
-    psm = load_psm()
+    psm = load_psm_script("arm_io_psm_chain")
     record = simulate(HandTrajectory(), ImuModel(), duration_s=4.0, rate_hz=50.0, seed=5)
     m = record.model
 

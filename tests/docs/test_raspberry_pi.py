@@ -9,16 +9,13 @@ Python snippet run against it.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import re
-import sys
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -28,10 +25,10 @@ from armbench.plant.imu_chips import Gy87Board
 from armbench.plant.pca9685 import PCA9685
 from armbench.registermap import controller_constants, controller_map
 from armbench.softplc.image import ProcessImage
+from psm_script import PSM_PATH, load_psm_script
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "raspberry-pi.md"
-PSM_PATH = REPO / "plc_project" / "psm" / "arm_io_psm.py"
 OPENPLC_SRC = Path("/opt/realplc/src")
 OSC_HZ = 25e6
 PRESCALE = 121
@@ -132,13 +129,6 @@ def test_doc_openplc_facts_are_in_its_source() -> None:
 # ---------------------------------------------------------------- steps 7 and 8 in the bench
 
 
-def load_psm() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("arm_io_psm_doc", PSM_PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 @dataclass
@@ -202,7 +192,7 @@ class PsmLoop:
 
 @contextlib.contextmanager
 def pi_rehearsal() -> Iterator[tuple[str, int, PCA9685, ImageVars]]:
-    psm = load_psm()
+    psm = load_psm_script("arm_io_psm_doc")
     chip = PCA9685(address=psm.PCA9685_ADDRESS)
     with serve_controller() as running:
         plc_vars = ImageVars(running.plc.image, running.plc.lock)
@@ -296,7 +286,7 @@ def test_imu_step_in_the_bench() -> None:
     from armbench.controller_client import ArmControllerClient
     from armbench.softplc.modbus_client import PlcClient
 
-    psm = load_psm()
+    psm = load_psm_script("arm_io_psm_doc")
     logs: list[str] = []
     with serve_controller() as running:
         plc_vars = ImageVars(running.plc.image, running.plc.lock)

@@ -7,11 +7,7 @@ simulator's raw samples (armbench.plant.imu), which must arrive unchanged in %IW
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from dataclasses import dataclass, field
-from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -20,20 +16,9 @@ import pytest
 from armbench.plant.imu import HandTrajectory, ImuModel, ImuRecord, simulate
 from armbench.plant.imu_chips import HMC5883L, MPU6050, Gy87Board
 from armbench.registermap import controller_map
+from psm_script import load_psm_script
 
-PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "arm_io_psm.py"
-
-
-def load_psm() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("arm_io_psm_imu", PSM_PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-psm_mod = load_psm()
+psm_mod = load_psm_script("arm_io_psm_imu")
 
 
 @dataclass

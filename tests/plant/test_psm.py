@@ -2,34 +2,23 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
 
 from armbench.plant.pca9685 import PCA9685, I2CNackError
+from psm_script import load_psm_script
 
-PSM_PATH = Path(__file__).resolve().parents[2] / "plc_project" / "psm" / "arm_io_psm.py"
 OSC = 25_000_000.0
 ADDR = 0x40
 
 
-def load_psm() -> ModuleType:
-    # The script is not in a package: load it by path, the way OpenPLC runs it as a file.
-    spec = importlib.util.spec_from_file_location("arm_io_psm", PSM_PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while building
-    spec.loader.exec_module(module)
-    return module
 
 
-psm_mod = load_psm()
+psm_mod = load_psm_script("arm_io_psm")
 
 
 @dataclass
