@@ -378,6 +378,15 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
     st = plc.command(CMD_SET_CALIBRATION, ints=(JOINT_GRIPPER, 1),
                      args=(0.0, 2100.0, 900.0, -60.0, 60.0))
     assert st.error_id != ERR_OK and plc.gripper_calibration() == cal
+    # a client writing NaN over the gripper's registers (%MD838..849) changes nothing: the
+    # program rewrites them from its own state every scan
+    before, word = plc.gripper(), plc.channel_words()[5]
+    first = _MAP["GRIPPERCALZERODEG"].address
+    with PlcClient(*plc_address) as raw:
+        raw.write_registers(first, [0x7FC0, 0x0000] * 12)
+    plc.wait_scans(3)
+    assert plc.gripper() == before and plc.gripper_calibration() == cal
+    assert plc.channel_words()[5] == word
 
 
 def test_gripper_does_not_disturb_an_arm_motion(plc: ArmControllerClient) -> None:
