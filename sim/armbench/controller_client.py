@@ -60,6 +60,11 @@ FIVE_FLAG_FLANGE_FIXED = _K["FiveFlagFlangeFixed"]
 FIVE_ROLL_MAX_100 = _K["FiveRollMax100"]
 JOINT_WRIST_PITCH = _K["JointWristPitch"]
 JOINT_WRIST_ROLL = _K["JointWristRoll"]
+# wrist jog and gripper (codes 32, 33; Controller.st 5-AXIS)
+CMD_JOG_WRIST = _K["CmdJogWrist"]
+CMD_SET_GRIPPER = _K["CmdSetGripper"]
+KIND_JOG_WRIST = _K["KindJogWrist"]
+JOINT_GRIPPER = _K["JointGripper"]
 # IMU commands 40..45 (issue #11; Controller.st IMU COMMANDS)
 CMD_IMU_SELECT_FILTER = _K["CmdImuSelectFilter"]
 CMD_IMU_SET_PERIOD = _K["CmdImuSetPeriod"]
@@ -134,6 +139,8 @@ _FIVE_FIELDS = ("FiveSession", "FiveSeq", "FiveErrorId", "FiveBaseDeg", "FiveSho
                 "FiveElbowDeg", "FiveWristPitchDeg", "FiveWristRollDeg", "FiveTipX", "FiveTipY",
                 "FiveTipZ", "FiveDirX", "FiveDirY", "FiveDirZ", "FiveToolPitchDeg",
                 "FiveToolRollDeg")
+_GRIPPER_FIELDS = ("GripperOpeningPct", "OutGripperDeg", "GripperPulseUs", "LimGripperVel",
+                   "LimGripperAcc", "GripperMoving")
 _WRIST_FIELDS = ("SetWristPitchDeg", "SetWristRollDeg", "OutWristPitchDeg", "OutWristRollDeg",
                  "WristPitchPulseUs", "WristRollPulseUs", "LimWristPitchVel", "LimWristRollVel",
                  "LimWristPitchAcc", "LimWristRollAcc")
@@ -405,6 +412,18 @@ class WristSample:
 
 
 @dataclass(frozen=True)
+class GripperSample:
+    """The gripper's channel (5), one read."""
+
+    opening_pct: float  # the last SetGripper's opening
+    out_deg: float  # its slew limiter's output = the servo's joint angle
+    pulse_us: float  # 0 = off (limp)
+    max_vel_deg: float
+    max_acc_deg: float
+    moving: bool  # the output is not yet at the target
+
+
+@dataclass(frozen=True)
 class Pending:
     """A command written to a mailbox and not yet answered."""
 
@@ -534,6 +553,8 @@ class ArmControllerClient:
         self._five = _Block.of(_FIVE_FIELDS)
         self._wrist = _Block.of(_WRIST_FIELDS)
         self._wrist_cal = _Block.of(f"{j}Cal{s}" for j in WRIST_JOINTS for s in _CAL_SUFFIXES)
+        self._gripper = _Block.of(_GRIPPER_FIELDS)
+        self._gripper_cal = _Block.of(f"GripperCal{s}" for s in _CAL_SUFFIXES)
         self._imu = _Block.of(_IMU_FIELDS)
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
@@ -974,6 +995,43 @@ class ArmControllerClient:
         n = len(_CAL_SUFFIXES)
         return (Calibration(v[0], int(v[1]), *v[2:n]),
                 Calibration(v[n], int(v[n + 1]), *v[n + 2: 2 * n]))
+
+    # -- wrist jog (code 32) and gripper (code 33) ------------------------------------------
+
+    def jog_wrist_start(self, pitch_rate_deg: float, roll_rate_deg: float,
+                        max_speed_deg: float = 0.0, acceleration_deg: float = 0.0, *,
+                        flange_fixed: bool = False) -> Status:
+        """JogWrist: turn the tool at these pitch/roll rates (deg/s); ``flange_fixed`` moves
+        only the wrist, else the tool tip stays where it is. 0 speed/acceleration = the
+        controller's defaults. Keep it alive with :meth:`jog_wrist_update` (or
+        :meth:`jog_update` with (pitch, roll, 0)) more often than every
+        ``JOG_DEADMAN_SCANS`` scans; :meth:`jog_stop` brakes it."""
+        return self._motion_command(CMD_JOG_WRIST, (self._five_flags(flange_fixed, False), 0),
+                                    (pitch_rate_deg, roll_rate_deg, max_speed_deg,
+                                     acceleration_deg), False)
+
+    def jog_wrist_update(self, pitch_rate_deg: float, roll_rate_deg: float) -> Status:
+        """JogUpdate of a wrist jog: the new pitch and roll rates (deg/s)."""
+        return self.command(CMD_JOG_UPDATE, args=(pitch_rate_deg, roll_rate_deg, 0.0))
+
+    def set_gripper(self, opening_pct: float) -> Status:
+        """SetGripper: open the gripper to ``opening_pct`` (0 closed .. 100 open, of the
+        calibrated travel); ``error_id`` 8 BadParameter outside that range."""
+        return self.command(CMD_SET_GRIPPER, args=(opening_pct,))
+
+    def gripper(self) -> GripperSample:
+        """The gripper channel's opening, servo angle, pulse, limits (one read)."""
+        b = self._gripper
+        v = b.decode(self._io(lambda: self._read(b.address, b.length),
+                              time.monotonic() + self.timeout_s))
+        return GripperSample(v[0], v[1], v[2], v[3], v[4], bool(v[5]))
+
+    def gripper_calibration(self) -> Calibration:
+        """The gripper servo's calibration (SetCalibration joint ``JOINT_GRIPPER``)."""
+        b = self._gripper_cal
+        v = b.decode(self._io(lambda: self._read(b.address, b.length),
+                              time.monotonic() + self.timeout_s))
+        return Calibration(v[0], int(v[1]), *v[2:])
 
     # -- SolveBatch --------------------------------------------------------------------------
 

@@ -202,7 +202,7 @@ def test_set_calibration_changes_the_pulses(plc: ArmControllerClient) -> None:
     (2, Calibration(max_pulse_us=25000.0), ERR_BAD_CALIBRATION),
     (0, Calibration(direction=0), ERR_BAD_CALIBRATION),
     (1, Calibration(zero_offset_deg=math.nan), ERR_NOT_FINITE),
-    (5, Calibration(), ERR_BAD_JOINT),  # 0..2 the arm, 3..4 the wrist (5-AXIS)
+    (6, Calibration(), ERR_BAD_JOINT),  # 0..2 the arm, 3..4 the wrist, 5 the gripper (5-AXIS)
     (-1, Calibration(), ERR_BAD_JOINT),
 ])
 def test_bad_calibration_is_rejected(plc: ArmControllerClient, joint: int, cal: Calibration,

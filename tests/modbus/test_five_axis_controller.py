@@ -32,6 +32,7 @@ from armbench.controller_client import (
     ERR_TOOL_VECTOR_ZERO,
     ERR_UNREACHABLE,
     FIVE_FLAG_FLANGE_FIXED,
+    JOINT_GRIPPER,
     JOINT_WRIST_PITCH,
     JOINT_WRIST_ROLL,
     ArmControllerClient,
@@ -252,7 +253,8 @@ def test_wrist_calibration(plc: ArmControllerClient) -> None:
         assert plc.wrist().pulses_us[1] == pytest.approx(1500.0, abs=1e-3)
         bad = Calibration(min_pulse_us=100.0)
         assert plc.set_calibration(JOINT_WRIST_PITCH, bad).error_id == ERR_BAD_CALIBRATION
-        assert plc.set_calibration(JOINT_WRIST_ROLL + 1, default).error_id == ERR_BAD_JOINT
+        # joint 5 is the gripper (tests/modbus/test_wrist_jog_gripper.py): 6 is none
+        assert plc.set_calibration(JOINT_GRIPPER + 1, default).error_id == ERR_BAD_JOINT
         assert plc.wrist_calibration() == (default, shifted)
     finally:
         assert plc.set_calibration(JOINT_WRIST_ROLL, default).error_id == ERR_OK

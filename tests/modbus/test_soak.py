@@ -91,7 +91,7 @@ def _steps(rng: random.Random) -> list[Step]:
          lambda c: c.set_calibration(rng.randint(0, 2), Calibration(min_angle_deg=60.0,
                                                                     max_angle_deg=-60.0)),
          ERR_BAD_CALIBRATION),
-        ("SetCalibration joint 5", lambda c: c.set_calibration(5, Calibration()), ERR_BAD_JOINT),
+        ("SetCalibration joint 6", lambda c: c.set_calibration(6, Calibration()), ERR_BAD_JOINT),
         ("unknown code 55", lambda c: c.command(55), ERR_UNKNOWN_COMMAND),
         ("Hello", lambda c: c.hello(), ERR_OK),
         (f"SolveBatch x{n}",

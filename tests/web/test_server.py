@@ -360,3 +360,28 @@ def test_five_axis_command_from_the_page(web: WebView, other: ArmControllerClien
     status, answer = post(web, {"name": "CmdMoveToolAngles", "fields": {
         "x": 170, "y": 20, "z": 80, "pitch": -30, "roll": 15, "mode": 4}})
     assert status == 400 and "Elbow / mode must be one of" in answer["message"], answer
+
+
+def test_wrist_jog_and_gripper_from_the_page(web: WebView, running: RunningPlc,
+                                             other: ArmControllerClient) -> None:
+    """The wrist jog and the gripper entries reach the PLC: the jog runs as MotionKind 5 and
+    stops by its dead-man (the page sends no updates); the gripper's pulse is the MG996R
+    mapping of the opening over the default travel (-60..+60 deg = 1000..2000 us)."""
+    k = controller_constants()
+    assert other.move_tool_angles((170.0, 20.0, 80.0), -30.0, 0.0, wait=True).error_id == 0
+    status, answer = post(web, {"name": "CmdJogWrist", "fields": {
+        "pitch": 10, "roll": -5, "speed": 0, "accel": 0, "mode": 2}})
+    assert status == 200 and answer["ok"] and answer["result"] == 0, answer
+    assert read(running, "MotionKind") == k["KindJogWrist"]
+    wait_for(lambda: read(running, "MotionErrorId") == k["CtlErr.JogTimeout"],
+             "the wrist jog's dead-man stop", timeout_s=5.0)
+    status, answer = post(web, {"name": "CmdSetGripper", "fields": {"opening": 30}})
+    assert status == 200 and answer["ok"] and answer["result"] == 0, answer
+    wait_for(lambda: read(running, "GripperMoving") == 0
+             and read(running, "GripperOpeningPct") == 30.0, "the gripper to arrive")
+    assert read(running, "GripperPulseUs") == pytest.approx(1000.0 + 0.3 * 1000.0, abs=1e-3)
+    status, answer = post(web, {"name": "CmdSetGripper", "fields": {"opening": 130}})
+    assert status == 200 and answer["result"] == k["Err.BadParameter"], answer
+    assert read(running, "GripperOpeningPct") == 30.0
+    status, answer = post(web, {"name": "CmdSetGripper", "fields": {"opening": "wide"}})
+    assert status == 400 and "Opening" in answer["message"], answer

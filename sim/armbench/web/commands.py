@@ -16,7 +16,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
-from ..controller_client import JOINTS, ArmControllerClient, BatchPoint, CommandRejected, Status
+from ..controller_client import (
+    JOINTS,
+    WRIST_JOINTS,
+    ArmControllerClient,
+    BatchPoint,
+    CommandRejected,
+    Status,
+)
 from ..registermap import controller_constants
 
 FieldKind = Literal["real", "int", "choice", "points"]
@@ -84,6 +91,9 @@ _PROFILES = ((0, "constant speed per joint"), (1, "synchronised constant speed")
              (2, "trapezoid"), (3, "jerk-limited"))
 _TOOL_MODES = ((0, "elbow up, tip fixed"), (1, "elbow down, tip fixed"),
                (2, "elbow up, flange fixed"), (3, "elbow down, flange fixed"))
+_WRIST_JOG_MODES = ((0, "tip fixed"), (2, "flange fixed (only the wrist moves)"))
+# SetCalibration / SetMotionLimits Int1: the arm, the wrist, the gripper (channels 0..5)
+_ALL_JOINTS = tuple(enumerate((*JOINTS, *WRIST_JOINTS, "Gripper")))
 _LINE_METHODS = ((0, "Bresenham (document 001)"), (1, "Bresenham + start compensation"),
                  (2, "time-scaled path"))
 
@@ -102,8 +112,7 @@ COMMANDS: tuple[CommandSpec, ...] = (
     CommandSpec("CmdRelax", "Relax", "All channels fully off: the servos go limp."),
     CommandSpec("CmdSetCalibration", "Set calibration",
                 "A joint's servo calibration (checked by the PLC; applies from the next move).",
-                (Field("joint", "Joint", "Int1", "choice", 0,
-                       choices=tuple(enumerate(JOINTS))),
+                (Field("joint", "Joint", "Int1", "choice", 0, choices=_ALL_JOINTS),
                  Field("direction", "Direction", "Int2", "choice", 1,
                        choices=((1, "+1"), (-1, "-1"))),
                  Field("zero", "Zero offset", "Arg1", default=0.0, unit="deg"),
@@ -159,8 +168,7 @@ COMMANDS: tuple[CommandSpec, ...] = (
                        unit="deg/s^2"),)),
     CommandSpec("CmdSetMotionLimits", "Motion limits",
                 "A joint's speed and acceleration limits (motion blocks and output stage).",
-                (Field("joint", "Joint", "Int1", "choice", 0,
-                       choices=tuple(enumerate(JOINTS))),
+                (Field("joint", "Joint", "Int1", "choice", 0, choices=_ALL_JOINTS),
                  Field("speed", "Speed limit", "Arg1", default=150.0, unit="deg/s"),
                  Field("accel", "Acceleration limit", "Arg2", default=1000.0,
                        unit="deg/s^2"))),
@@ -185,6 +193,20 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("roll", "Roll", "Int2", "int", 0, unit="0.01 deg", low=-36000,
                        high=36000),
                  Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES))),
+    CommandSpec("CmdJogWrist", "Wrist jog (pitch/roll)",
+                "5-axis arm: turn the tool at these rates (document 000's operator); tip fixed "
+                "(the arm moves round the tip) or flange fixed (only the wrist). Jog update "
+                "(Arg1/Arg2 = rates) keeps it alive, Jog stop brakes; dead-man 0.5 s.",
+                (Field("pitch", "Pitch rate", "Arg1", default=10.0, unit="deg/s"),
+                 Field("roll", "Roll rate", "Arg2", default=0.0, unit="deg/s"),
+                 Field("speed", "Max speed (0 = 30)", "Arg3", default=0.0, unit="deg/s"),
+                 Field("accel", "Acceleration (0 = 150)", "Arg4", default=0.0,
+                       unit="deg/s^2"),
+                 Field("mode", "Mode", "Int1", "choice", 0, choices=_WRIST_JOG_MODES))),
+    CommandSpec("CmdSetGripper", "Gripper",
+                "Open the gripper (channel 5) to a percentage of its calibrated travel: "
+                "0 closed, 100 open. No arm motion starts or ends.",
+                (Field("opening", "Opening", "Arg1", default=50.0, unit="%"),)),
     CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
                 "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",
                 (Field("x", "X", "Arg1", default=150.0, unit="mm"),

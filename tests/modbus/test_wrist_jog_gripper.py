@@ -1,0 +1,414 @@
+"""The wrist jog (32 JogWrist) and the gripper (33 SetGripper, channel 5) of
+plc_project/Controller.st over Modbus only: runs against the soft PLC, or a real PLC with
+``--plc-host``/``--plc-port`` like the rest of tests/modbus.
+
+References, all independent of the PLC's code:
+- a float64 numpy product of elementary transforms Rz(base) Tz(A1) Tx(A2) Ry(-shoulder) Tx(A3)
+  Ry(180 - elbow) Tx(A4) Ry(-wrist pitch) Rx(roll) Tx(tool) (st/Kinematics5Axis.st's joint
+  conventions), evaluated on the joint angles the servos are sent (the slew limiters'
+  outputs), sampled every scan;
+- the slew guarantee restated from st/ServoSlew.st's header (step <= MaxVel dt, step change
+  <= MaxAcc dt^2) on every channel, with the limits the PLC reports;
+- the braking distance v^2 / (2 a) of a constant deceleration;
+- the MG996R mapping (1000..2000 us over the servo's -60..+60 deg) and the PCA9685's count
+  (datasheet equation 1), computed here from the calibration the test sends.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from armbench.controller_client import (
+    CMD_JOG_WRIST,
+    CMD_SET_CALIBRATION,
+    CMD_SET_GRIPPER,
+    ERR_BAD_JOINT,
+    ERR_BAD_PARAMETER,
+    ERR_JOG_TIMEOUT,
+    ERR_NOT_FINITE,
+    ERR_NOT_MOTION_OWNER,
+    ERR_OK,
+    JOG_DEADMAN_SCANS,
+    JOINT_GRIPPER,
+    KIND_JOG_WRIST,
+    ArmControllerClient,
+    Calibration,
+)
+from armbench.plant import arm
+from armbench.registermap import controller_map
+from armbench.softplc.modbus_client import PlcClient
+
+G = arm.DEFAULT_GEOMETRY
+TOOL_MM = 60.0  # FiveAxisGeometry.ToolMm default (Controller.st 5-AXIS)
+DT = 0.01  # s, the controller's task interval
+TOL_DEG = 1e-4  # float32 angles near 100 deg, a few ulps per step
+F_UPDATE_HZ = 25e6 / (4096 * 122)  # PCA9685 at prescale 121 (datasheet equation 1)
+# the 5-axis start pose (deg): inside every servo's default travel, tip in front of the base
+Q_START = (10.0, 80.0, 100.0, -20.0, 10.0)
+
+
+def _rot(axis: int, a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    m = np.eye(4)
+    i, j = [(1, 2), (0, 2), (0, 1)][axis]
+    m[i, i] = m[j, j] = c
+    m[i, j], m[j, i] = (s, -s) if axis == 1 else (-s, s)
+    return m
+
+
+def _tx(x: float, z: float = 0.0) -> np.ndarray:
+    m = np.eye(4)
+    m[0, 3], m[2, 3] = x, z
+    return m
+
+
+def fk(q: tuple[float, ...] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(flange point, tool frame 4x4), float64."""
+    b, s, e, wp, wr = (math.radians(v) for v in q[:5])
+    flange = (_rot(2, b) @ _tx(G.a2, G.a1) @ _rot(1, -s) @ _tx(G.a3) @ _rot(1, math.pi - e)
+              @ _tx(G.a4))
+    return flange[:3, 3], flange @ _rot(1, -wp) @ _rot(0, wr) @ _tx(TOOL_MM)
+
+
+def tool_pitch(q: tuple[float, ...] | np.ndarray) -> float:
+    x = fk(q)[1][:3, 0]
+    return math.degrees(math.atan2(x[2], math.hypot(x[0], x[1])))
+
+
+def _real(words: list[int], k: int) -> float:
+    return float(struct.unpack(">f", struct.pack(">HH", words[2 * k], words[2 * k + 1]))[0])
+
+
+def _dint(words: list[int], k: int) -> int:
+    return int(struct.unpack(">i", struct.pack(">HH", words[2 * k], words[2 * k + 1]))[0])
+
+
+_MAP = controller_map()
+_A0 = _MAP["MOTIONSCAN"].index  # %MD724..762: motion block (scan tag, arm outputs, limits)
+_A1 = _MAP["LIMELBOWACC"].index
+_B0 = _MAP["FIVESESSION"].index  # %MD812..849: 5-axis echo, wrist and gripper
+_B1 = _MAP["GRIPPERMOVING"].index
+
+
+def _md(name: str) -> int:
+    return _MAP[name.upper()].index
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One scan of the channels this suite checks."""
+
+    scan: int
+    kind: int
+    busy: bool
+    error_id: int
+    at_limit: bool
+    out: tuple[float, ...]  # deg, channels 0..5 (slew limiter outputs)
+    lim_vel: tuple[float, ...]
+    lim_acc: tuple[float, ...]
+    echo_tip: tuple[float, float, float]
+    echo_pitch: float
+
+
+class ChannelRecorder:
+    """Samples the motion and 5-axis/gripper blocks on its own connection: two FC3 reads,
+    kept only when a third read finds the scan tag unchanged (both blocks are then from one
+    scan). Scans it misses are missing, never interpolated."""
+
+    def __init__(self, address: tuple[str, int]) -> None:
+        self.address = address
+        self.samples: list[Sample] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True, name="wrist-recorder")
+
+    def __enter__(self) -> ChannelRecorder:
+        self._thread.start()
+        deadline = time.monotonic() + 5.0
+        while not self.samples and time.monotonic() < deadline:
+            time.sleep(0.005)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+
+    def _run(self) -> None:
+        a_len, b_len = 2 * (_A1 - _A0 + 1), 2 * (_B1 - _B0 + 1)
+        with PlcClient(*self.address) as c:
+            while not self._stop.is_set():
+                a = c.read_holding_registers(2048 + 2 * _A0, a_len)
+                b = c.read_holding_registers(2048 + 2 * _B0, b_len)
+                tag = c.read_holding_registers(2048 + 2 * _A0, 2)
+                if tag != a[:2]:
+                    continue
+                scan = _dint(a, 0) & 0xFFFFFFFF
+                if self.samples and self.samples[-1].scan == scan:
+                    time.sleep(0.001)
+                    continue
+
+                self.samples.append(_decode(scan, a, b))
+
+    def triples(self) -> Iterator[tuple[Sample, Sample, Sample]]:
+        s = self.samples
+        for a, b, c in zip(s, s[1:], s[2:], strict=False):
+            if b.scan - a.scan == 1 and c.scan - b.scan == 1:
+                yield a, b, c
+
+
+def _decode(scan: int, a: list[int], b: list[int]) -> Sample:
+    def ra(n: str) -> float:
+        return _real(a, _md(n) - _A0)
+
+    def rb(n: str) -> float:
+        return _real(b, _md(n) - _B0)
+
+    def ia(n: str) -> int:
+        return _dint(a, _md(n) - _A0)
+
+    out = (ra("OutBaseDeg"), ra("OutShoulderDeg"), ra("OutElbowDeg"),
+           rb("OutWristPitchDeg"), rb("OutWristRollDeg"), rb("OutGripperDeg"))
+    vel = (ra("LimBaseVel"), ra("LimShoulderVel"), ra("LimElbowVel"),
+           rb("LimWristPitchVel"), rb("LimWristRollVel"), rb("LimGripperVel"))
+    acc = (ra("LimBaseAcc"), ra("LimShoulderAcc"), ra("LimElbowAcc"),
+           rb("LimWristPitchAcc"), rb("LimWristRollAcc"), rb("LimGripperAcc"))
+    return Sample(scan, ia("MotionKind"), bool(ia("MotionBusy")), ia("MotionErrorId"),
+                  bool(ia("MotionAtLimit")), out, vel, acc,
+                  (rb("FiveTipX"), rb("FiveTipY"), rb("FiveTipZ")), rb("FiveToolPitchDeg"))
+
+
+def assert_slew_limited(rec: ChannelRecorder, min_triples: int = 10) -> None:
+    """Every channel 0..5, on every three neighbouring scans recorded: the step within the
+    speed limit, the step's change within the acceleration limit (ServoSlew.st)."""
+    n = 0
+    for a, b, c in rec.triples():
+        n += 1
+        for j in range(6):
+            s1, s2 = b.out[j] - a.out[j], c.out[j] - b.out[j]
+            assert math.isfinite(s1) and math.isfinite(s2)
+            cap = max(c.lim_vel[j] * DT, abs(s1) - c.lim_acc[j] * DT * DT)
+            assert abs(s2) <= cap + TOL_DEG, (j, c.scan, s2, cap)
+            assert abs(s2 - s1) <= c.lim_acc[j] * DT * DT + 2 * TOL_DEG, (j, c.scan, s2 - s1)
+    assert n >= min_triples, f"only {n} triples of neighbouring scans recorded"
+
+
+def go_to_start(plc: ArmControllerClient, q: tuple[float, ...] = Q_START) -> np.ndarray:
+    """A MoveToolAngles to the pose of joints ``q``; returns its tool tip (reference FK)."""
+    _, tool = fk(q)
+    tip = tool[:3, 3]
+    pitch = q[1] + q[2] - 180.0 + q[3]
+    st = plc.move_tool_angles((float(tip[0]), float(tip[1]), float(tip[2])), pitch, q[4],
+                              wait=True)
+    assert st.error_id == ERR_OK
+    return tip
+
+
+def keep_alive(plc: ArmControllerClient, pitch: float, roll: float, seconds: float) -> None:
+    t_end = time.monotonic() + seconds
+    while time.monotonic() < t_end:
+        assert plc.jog_wrist_update(pitch, roll).error_id == ERR_OK
+        time.sleep(0.05)
+
+
+def test_tip_fixed_wrist_jog_keeps_the_tip(plc: ArmControllerClient,
+                                           plc_address: tuple[str, int]) -> None:
+    tip0 = go_to_start(plc)
+    rate, acc = 20.0, 100.0
+    with ChannelRecorder(plc_address) as rec:
+        assert plc.jog_wrist_start(rate, 0.0, 40.0, acc).error_id == ERR_OK
+        m = plc.motion()
+        assert m.kind == KIND_JOG_WRIST and m.busy
+        keep_alive(plc, rate, 0.0, 1.2)
+        assert plc.jog_stop().error_id == ERR_OK
+        assert plc.wait_motion().state == "done"
+        time.sleep(0.1)
+    samples = rec.samples
+    drift = max(float(np.linalg.norm(fk(s.out)[1][:3, 3] - tip0)) for s in samples)
+    print(f"\nworst tip drift during a tip-fixed wrist jog: {drift * 1000:.1f} um")
+    assert drift < 0.05, drift
+    # the tool pitch of the servos' joints turns at the commanded rate, never faster
+    rates = [(tool_pitch(b.out) - tool_pitch(a.out)) / DT
+             for a, b, _ in rec.triples() if a.kind == KIND_JOG_WRIST]
+    assert max(rates) <= rate * (1 + 1e-3) + 0.05
+    steady = [r for r in rates if abs(r - rate) < 0.1]
+    assert len(steady) >= 20, sorted(rates)[-5:]
+    turned = tool_pitch(samples[-1].out) - tool_pitch(Q_START)
+    assert turned > rate * 1.0  # 1.2 s of jog, ramps included
+    # the echo block followed the jog: its tip is the held tip, its pitch the servos'
+    assert np.linalg.norm(np.array(samples[-1].echo_tip) - tip0) < 0.05
+    assert samples[-1].echo_pitch == pytest.approx(tool_pitch(samples[-1].out), abs=0.01)
+    assert_slew_limited(rec)
+
+
+def test_dead_man_brakes_a_silent_wrist_jog(plc: ArmControllerClient,
+                                            plc_address: tuple[str, int]) -> None:
+    go_to_start(plc)
+    rate, acc = 30.0, 150.0
+    with ChannelRecorder(plc_address) as rec:
+        assert plc.jog_wrist_start(rate, 0.0, rate, acc, flange_fixed=True).error_id == ERR_OK
+        started = plc.motion().scan
+        outcome = plc.wait_motion(timeout_s=10.0)  # the client says nothing more
+        time.sleep(0.1)
+    assert outcome.state == "error" and outcome.error_id == ERR_JOG_TIMEOUT
+    s = [x for x in rec.samples if x.scan >= started]
+    # the arm joints stand (flange-fixed), the wrist pitch moved
+    assert all(abs(x.out[j] - s[0].out[j]) < TOL_DEG for x in s for j in range(3))
+    fired = started + JOG_DEADMAN_SCANS + 1
+    at_fire = min((x for x in s if x.scan >= fired), key=lambda x: x.scan)
+    rest = s[-1]
+    braked = abs(rest.out[3] - at_fire.out[3])
+    bound = rate * rate / (2 * acc) + rate * DT * (at_fire.scan - fired + 1)
+    print(f"\nwrist jog dead-man: braked {braked:.3f} deg from {rate} deg/s "
+          f"(bound v^2/2a = {rate * rate / (2 * acc):.3f} deg)")
+    assert braked <= bound + 1e-3
+    moving = [x.scan for a, x, _ in rec.triples() if abs(x.out[3] - a.out[3]) > 1e-6]
+    assert moving and moving[-1] <= fired + math.ceil(rate / (acc * DT)) + 3
+    assert_slew_limited(rec)
+
+
+def test_wrist_jog_ownership_takeover_and_bad_writes(plc: ArmControllerClient,
+                                                     plc_address: tuple[str, int]) -> None:
+    go_to_start(plc)
+    with ChannelRecorder(plc_address) as rec, PlcClient(*plc_address) as modbus, \
+            ArmControllerClient(modbus) as other:
+        assert plc.jog_wrist_start(5.0, 10.0).error_id == ERR_OK
+        # another client cannot steer or stop it
+        assert other.jog_wrist_update(60.0, 60.0).error_id == ERR_NOT_MOTION_OWNER
+        assert other.jog_stop().error_id == ERR_NOT_MOTION_OWNER
+        # bad writes by the owner: NaN shows MotionErrorId 3 while it lasts, huge rates are
+        # clamped to the max speed (30 deg/s default)
+        assert plc.jog_wrist_update(math.nan, 0.0).error_id == ERR_OK
+        plc.wait_scans(3)
+        assert plc.motion().error_id == ERR_NOT_FINITE
+        assert plc.jog_wrist_update(-1.0e30, 1.0e30).error_id == ERR_OK
+        keep_alive(plc, -1.0e30, 1.0e30, 0.6)
+        # a bad start changes nothing: the running jog goes on, same ticket
+        ticket = plc.motion().ticket
+        st = other.command(CMD_JOG_WRIST, ints=(0, 0), args=(1.0, 1.0, math.nan, 0.0))
+        assert st.error_id == ERR_BAD_PARAMETER
+        st = other.command(CMD_JOG_WRIST, ints=(4, 0), args=(1.0, 1.0, 0.0, 0.0))
+        assert st.error_id == ERR_BAD_PARAMETER
+        assert plc.motion().ticket == ticket and plc.motion().busy
+        # takeover: the other client's JogWrist takes the running jog, same speed and mode
+        starts = plc.motion().starts
+        assert other.jog_wrist_start(0.0, -10.0).error_id == ERR_OK
+        m = plc.motion()
+        assert m.busy and m.kind == KIND_JOG_WRIST and m.starts == starts + 1
+        assert m.ticket.session == other.session
+        assert plc.jog_wrist_update(1.0, 1.0).error_id == ERR_NOT_MOTION_OWNER
+        assert other.jog_wrist_update(0.0, -10.0).error_id == ERR_OK
+        # Stop from anyone ends it
+        assert plc.stop().error_id == ERR_OK
+        assert other.wait_motion().state == "superseded"
+        assert plc.wait_motion().state == "done"
+        time.sleep(0.1)
+    roll_speeds = [abs(b.out[4] - a.out[4]) / DT for a, b, _ in rec.triples()]
+    assert max(roll_speeds) <= 30.0 * (1 + 1e-3) + 0.01  # the default max speed held
+    assert all(math.isfinite(v) for x in rec.samples for v in x.out)
+    assert_slew_limited(rec)
+
+
+def test_wrist_jog_stops_at_the_wrist_limit(plc: ArmControllerClient,
+                                            plc_address: tuple[str, int]) -> None:
+    go_to_start(plc)
+    c = plc.wrist_calibration()[0]
+    upper = max(c.zero_offset_deg + c.direction * a for a in (c.min_angle_deg, c.max_angle_deg))
+    with ChannelRecorder(plc_address) as rec:
+        assert plc.jog_wrist_start(60.0, 0.0, 60.0, 300.0, flange_fixed=True).error_id == ERR_OK
+        keep_alive(plc, 60.0, 0.0, 2.0)
+        held = plc.motion()
+        assert held.busy and held.at_limit, held
+        assert plc.jog_stop().error_id == ERR_OK
+        assert plc.wait_motion().state == "done"
+    top = max(x.out[3] for x in rec.samples)
+    assert upper - 2.0 < top <= upper + TOL_DEG
+    assert_slew_limited(rec)
+
+
+def mg996r_pulse_us(joint_deg: float, cal: Calibration) -> float:
+    servo = (joint_deg - cal.zero_offset_deg) * cal.direction
+    return cal.min_pulse_us + (servo - cal.min_angle_deg) * (
+        cal.max_pulse_us - cal.min_pulse_us) / (cal.max_angle_deg - cal.min_angle_deg)
+
+
+def wait_gripper_still(plc: ArmControllerClient) -> None:
+    deadline = time.monotonic() + 10.0
+    while plc.gripper().moving:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    plc.wait_scans(2)
+
+
+def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int]) -> None:
+    cal = Calibration(zero_offset_deg=10.0, direction=-1, min_pulse_us=900.0,
+                      max_pulse_us=2100.0, min_angle_deg=-70.0, max_angle_deg=50.0)
+    assert plc.set_calibration(JOINT_GRIPPER, cal).error_id == ERR_OK
+    assert plc.gripper_calibration() == cal
+    assert plc.set_calibration(JOINT_GRIPPER + 1, cal).error_id == ERR_BAD_JOINT
+    assert plc.set_motion_limits(JOINT_GRIPPER, 80.0, 400.0).error_id == ERR_OK
+    # joint travel: zero + direction * servo range = 10 - (-70..50) = -40..80 deg
+    lower, upper = 10.0 - 50.0, 10.0 + 70.0
+    with ChannelRecorder(plc_address) as rec:
+        for pct in (25.0, 100.0, 0.0):
+            assert plc.set_gripper(pct).error_id == ERR_OK
+            wait_gripper_still(plc)
+            g = plc.gripper()
+            joint = lower + (upper - lower) * pct / 100.0
+            assert g.opening_pct == pct and g.out_deg == pytest.approx(joint, abs=1e-4)
+            expect_us = mg996r_pulse_us(joint, cal)
+            assert g.pulse_us == pytest.approx(expect_us, abs=1e-3)
+            assert plc.channel_words()[5] == round(expect_us * 4096 * F_UPDATE_HZ / 1e6)
+        # bad openings: rejected, nothing moves
+        before = plc.gripper()
+        for bad in (math.nan, -0.5, 100.5, math.inf):
+            assert plc.command(CMD_SET_GRIPPER, args=(bad,)).error_id == ERR_BAD_PARAMETER
+        plc.wait_scans(3)
+        assert plc.gripper() == before
+    speeds = [abs(b.out[5] - a.out[5]) / DT for a, b, _ in rec.triples()]
+    assert max(speeds) <= 80.0 * (1 + 1e-3) + 0.01 and max(speeds) > 40.0
+    assert_slew_limited(rec)
+    # a bad calibration changes nothing
+    st = plc.command(CMD_SET_CALIBRATION, ints=(JOINT_GRIPPER, 1),
+                     args=(0.0, 2100.0, 900.0, -60.0, 60.0))
+    assert st.error_id != ERR_OK and plc.gripper_calibration() == cal
+    # a client writing NaN over the gripper's registers (%MD838..849) changes nothing: the
+    # program rewrites them from its own state every scan
+    before, word = plc.gripper(), plc.channel_words()[5]
+    first = _MAP["GRIPPERCALZERODEG"].address
+    with PlcClient(*plc_address) as raw:
+        raw.write_registers(first, [0x7FC0, 0x0000] * 12)
+    plc.wait_scans(3)
+    assert plc.gripper() == before and plc.gripper_calibration() == cal
+    assert plc.channel_words()[5] == word
+
+
+def test_gripper_does_not_disturb_an_arm_motion(plc: ArmControllerClient) -> None:
+    assert plc.set_calibration(JOINT_GRIPPER, Calibration()).error_id == ERR_OK
+    assert plc.move_joints(0.0, 80.0, 90.0, wait=True).error_id == ERR_OK
+    st = plc.move_joints_profile((30.0, 70.0, 100.0), 2, 30.0, 100.0)
+    assert st.error_id == ERR_OK
+    ticket = plc.last_ticket
+    assert plc.set_gripper(80.0).error_id == ERR_OK
+    m = plc.motion()
+    assert m.ticket == ticket and m.busy
+    assert plc.wait_motion(ticket).state == "done"
+    assert plc.motion().out_deg == pytest.approx((30.0, 70.0, 100.0), abs=1e-3)
+    wait_gripper_still(plc)
+    assert plc.gripper().pulse_us == pytest.approx(1000.0 + 1000.0 * 0.8, abs=1e-3)
+    # Relax relaxes it: pulse off, channel word full off (bit 12); it stays where it stood
+    out = plc.gripper().out_deg
+    assert plc.relax().error_id == ERR_OK
+    plc.wait_scans(2)
+    g = plc.gripper()
+    assert g.pulse_us == 0.0 and plc.channel_words()[5] == 0x1000 and g.out_deg == out
+    # an arm move after Relax leaves the gripper limp; SetGripper wakes it where it stands
+    assert plc.move_joints(0.0, 80.0, 90.0, wait=True).error_id == ERR_OK
+    assert plc.gripper().pulse_us == 0.0
+    assert plc.relax().error_id == ERR_OK  # leave channel 5 off for the suites after this
