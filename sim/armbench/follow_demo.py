@@ -32,6 +32,7 @@ from .plant.arm import DEFAULT_GEOMETRY, ArmGeometry
 from .plant.imu import HandTrajectory, ImuModel, ImuRecord, quat_to_matrix, simulate
 from .plant.imu_feed import ImuFeeder
 from .registermap import SOURCES, controller_map
+from .softplc.fastpath import ImageLock
 from .softplc.image import ProcessImage
 from .softplc.loader import load_program
 from .softplc.modbus_client import PlcClient
@@ -128,7 +129,7 @@ class HandRig:
     records the outputs of the scan just run and writes the next sample while playing."""
 
     image: ProcessImage
-    lock: threading.Lock
+    lock: threading.Lock | ImageLock
     feeder: ImuFeeder = field(init=False)
     record: ImuRecord | None = None
     next_index: int = 0
@@ -267,8 +268,8 @@ def analyse(rows: Sequence[ScanRow], record: ImuRecord, heading_deg: float,
     plane = math.degrees(math.atan2(held[0, 1], held[0, 0]))
     hp, hr = pitch_roll_in_plane(hand_x, hand_y, plane)
     ap, ar = pitch_roll_in_plane(arm_x, arm_y, plane)
-    return FollowRun(t=np.arange(len(rows)) * SCAN_S, hand_dir=hand_x, arm_dir=arm_x,
-                     hand_pitch=hp, hand_roll=hr, arm_pitch=ap, arm_roll=ar,
+    t = np.arange(len(rows), dtype=np.float64) * SCAN_S
+    return FollowRun(t=t, hand_dir=hand_x, arm_dir=arm_x, hand_pitch=hp, hand_roll=hr, arm_pitch=ap, arm_roll=ar,
                      error_deg=angle_deg(hand_x, arm_x),
                      drift_mm=np.linalg.norm(held - held[0], axis=1), joints=joints,
                      flange_fixed=flange_fixed, heading_deg=heading_deg)
@@ -279,9 +280,9 @@ def _check(what: str, code: int) -> None:
         raise CommandRejected(what, code)
 
 
-def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20.0, heading_deg: float = 10.0,
-               flange_fixed: bool = False, seed: int = 5, lead_s: float = 0.5,
-               trajectory: HandTrajectory | None = None) -> FollowRun:
+def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20.0,
+               heading_deg: float = 10.0, flange_fixed: bool = False, seed: int = 5,
+               lead_s: float = 0.5, trajectory: HandTrajectory | None = None) -> FollowRun:
     """Start pose, Madgwick MARG filter started at the hand's true orientation, ``lead_s`` of
     samples, then FollowImu for ``duration_s`` while the hand moves; returns the figures."""
     traj = trajectory or demo_trajectory(heading_deg)
@@ -357,8 +358,9 @@ def run_from_args(args: argparse.Namespace, out: TextIO = sys.stdout) -> int:
         return 2
     try:
         with paced_controller() as ctl:
-            run = run_follow(ctl.address, ctl.rig, duration_s=args.seconds, heading_deg=args.heading,
-                             flange_fixed=args.flange_fixed, seed=args.seed)
+            run = run_follow(ctl.address, ctl.rig, duration_s=args.seconds,
+                             heading_deg=args.heading, flange_fixed=args.flange_fixed,
+                             seed=args.seed)
     except (CommandRejected, DemoError) as exc:
         out.write(f"demo-imu failed: {exc}\n")
         return 1
