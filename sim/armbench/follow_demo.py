@@ -269,7 +269,8 @@ def analyse(rows: Sequence[ScanRow], record: ImuRecord, heading_deg: float,
     hp, hr = pitch_roll_in_plane(hand_x, hand_y, plane)
     ap, ar = pitch_roll_in_plane(arm_x, arm_y, plane)
     t = np.arange(len(rows), dtype=np.float64) * SCAN_S
-    return FollowRun(t=t, hand_dir=hand_x, arm_dir=arm_x, hand_pitch=hp, hand_roll=hr, arm_pitch=ap, arm_roll=ar,
+    return FollowRun(t=t, hand_dir=hand_x, arm_dir=arm_x, hand_pitch=hp, hand_roll=hr,
+                     arm_pitch=ap, arm_roll=ar,
                      error_deg=angle_deg(hand_x, arm_x),
                      drift_mm=np.linalg.norm(held - held[0], axis=1), joints=joints,
                      flange_fixed=flange_fixed, heading_deg=heading_deg)
