@@ -312,14 +312,9 @@ def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20
     return analyse(rows[started:], record, heading_deg, flange_fixed)
 
 
-def per_second(run: FollowRun) -> list[tuple[float, float, float, float, float, float, float]]:
-    """(t, hand pitch, arm pitch, hand roll, arm roll, error deg, drift mm) at each second."""
-    out = []
-    for k in range(0, len(run.t), int(round(1.0 / SCAN_S))):
-        out.append((float(run.t[k]), float(run.hand_pitch[k]), float(run.arm_pitch[k]),
-                    float(run.hand_roll[k]), float(run.arm_roll[k]), float(run.error_deg[k]),
-                    float(run.drift_mm[k])))
-    return out
+def per_second(run: FollowRun) -> list[int]:
+    """Row indices of the recorded scans at each whole second."""
+    return list(range(0, len(run.t), int(round(1.0 / SCAN_S))))
 
 
 def settled(run: FollowRun, after_s: float = 2.0) -> npt.NDArray[np.bool_]:
@@ -330,10 +325,17 @@ def print_report(run: FollowRun, out: TextIO) -> None:
     mode = "flange-fixed" if run.flange_fixed else "tip-fixed"
     out.write(f"FollowImu, {mode}, heading {run.heading_deg:g} deg; hand = ground truth, "
               "arm = FK of the joint outputs (base frame)\n")
-    out.write("   t s  hand pitch  arm pitch  hand roll  arm roll  error deg  drift mm\n")
-    for t, hp, ap, hr, ar, e, d in per_second(run):
-        out.write(f"{t:6.1f}  {hp:10.2f}  {ap:9.2f}  {hr:9.2f}  {ar:8.2f}  {e:9.2f}  "
-                  f"{d:8.3f}\n")
+    held = "flange" if run.flange_fixed else "tip"
+    out.write(f"  t s   hand tool direction    arm tool direction   error  {held} drift"
+              "   pitch hand/arm   roll hand/arm\n")
+    out.write("                                                      deg      mm"
+              "          deg            deg\n")
+    for k in per_second(run):
+        h, a = run.hand_dir[k], run.arm_dir[k]
+        out.write(f"{run.t[k]:5.1f}  {h[0]:6.3f} {h[1]:6.3f} {h[2]:6.3f}  "
+                  f"{a[0]:6.3f} {a[1]:6.3f} {a[2]:6.3f}  {run.error_deg[k]:6.2f}  "
+                  f"{run.drift_mm[k]:8.3f}  {run.hand_pitch[k]:7.2f} {run.arm_pitch[k]:7.2f}"
+                  f"  {run.hand_roll[k]:7.2f} {run.arm_roll[k]:7.2f}\n")
     ok = settled(run)
     out.write(f"after 2 s: direction error mean {run.error_deg[ok].mean():.2f} deg, "
               f"95 % {np.percentile(run.error_deg[ok], 95):.2f} deg, max "
