@@ -278,3 +278,25 @@ def test_reference_fk_matches_start_pose() -> None:
     r = 20.0 + 120.0 * math.cos(math.radians(75)) + 130.0 * math.cos(math.radians(-10))
     assert math.isclose(tip[0][0], r + TOOL_MM, abs_tol=1e-9)
 
+
+
+def test_mount_offset_rolls_the_tool(ctl: ArmControllerClient, rig: HandRig) -> None:
+    """A sensor mounted rolled by -20 deg about the tool axis (Arg4): the tool frame is the
+    sensor's turned by +20 deg about x, so the arm rolls 20 deg further than the sensor."""
+    record = simulate(_trajectory(((2.0, 0.2, 0.0),)), ImuModel(), duration_s=6.0,
+                      rate_hz=100.0, seed=13)
+    assert ctl.move_tool_angles(START_TIP_MM, 0.0, 0.0, wait=True).error_id == ERR_OK
+    assert ctl.imu_select_filter("madgwick_marg", 0.0) == ERR_OK
+    assert ctl.imu_set_period(record.period_s) == ERR_OK
+    assert ctl.imu_reset(tuple(float(v) for v in record.quat_true[0])) == ERR_OK
+    rig.play(record, 1)
+    rig.wait_samples(20)
+    rig.start_recording()
+    assert ctl.follow_imu(heading_deg=10.0, mount_rpy_deg=(20.0, 0.0, 0.0)).error_id == ERR_OK
+    rig.wait_samples(400)
+    rows = rig.take_rows()
+    rig.pause()
+    run = analyse(rows, record, 10.0, False)
+    late = run.t >= 2.0
+    assert np.abs(run.arm_roll[late] - (run.hand_roll[late] + 20.0)).max() < 3.5
+    assert np.abs(run.arm_pitch[late] - run.hand_pitch[late]).max() < 3.5

@@ -23,6 +23,7 @@ from armbench.plots.cli import figure_target
 DURATION_S = 20.0
 HEADING_DEG = 10.0
 SEED = 5
+FIGURE = "follow-imu.png"
 
 
 def follow_figure(path: Path, run: FollowRun) -> Path:
@@ -56,7 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with paced_controller() as ctl:
         run = run_follow(ctl.address, ctl.rig, duration_s=DURATION_S, heading_deg=HEADING_DEG,
                          seed=SEED)
-    print(follow_figure(out / "follow-imu.png", run))
+    print(follow_figure(out / FIGURE, run))
     return 0
 
 
