@@ -27,6 +27,7 @@ from typing import TextIO
 import numpy as np
 import numpy.typing as npt
 
+from . import argtypes
 from .controller_client import ERR_OK, ArmControllerClient, CommandRejected
 from .plant.arm import DEFAULT_GEOMETRY, ArmGeometry
 from .plant.imu import HandTrajectory, ImuModel, ImuRecord, quat_to_matrix, simulate
@@ -132,6 +133,7 @@ class HandRig:
     lock: threading.Lock | ImageLock
     feeder: ImuFeeder = field(init=False)
     record: ImuRecord | None = None
+    scans_per_sample: int = 1  # 1 = 100 Hz samples at the 10 ms task, 2 = 50 Hz, ...
     next_index: int = 0
     playing: bool = False
     recording: bool = False
@@ -147,9 +149,12 @@ class HandRig:
         cmap = controller_map()
         self._out_md = tuple(cmap[n].index for n in _OUT_NAMES)
 
-    def play(self, record: ImuRecord, start: int = 0) -> None:
+    def play(self, record: ImuRecord, start: int = 0, scans_per_sample: int = 1) -> None:
+        if not 1 <= scans_per_sample <= 100:
+            raise ValueError(f"scans_per_sample must lie in 1..100, got {scans_per_sample}")
         with self._mutex:
             self.record, self.next_index, self.playing = record, start, True
+            self.scans_per_sample = scans_per_sample
 
     def pause(self) -> None:
         with self._mutex:
@@ -187,7 +192,7 @@ class HandRig:
             if self.recording:
                 self.rows.append(ScanRow(self.next_index - 1, self.outputs()))
             rec = self.record
-            if self.playing and rec is not None:
+            if self.playing and rec is not None and self._scans % self.scans_per_sample == 0:
                 if self.next_index >= len(rec):
                     self.playing = False
                 else:
@@ -251,6 +256,7 @@ class FollowRun:
     joints: FloatArray  # N x 5 deg
     flange_fixed: bool
     heading_deg: float
+    rate_hz: float
 
 
 def analyse(rows: Sequence[ScanRow], record: ImuRecord, heading_deg: float,
@@ -273,7 +279,8 @@ def analyse(rows: Sequence[ScanRow], record: ImuRecord, heading_deg: float,
                      arm_pitch=ap, arm_roll=ar,
                      error_deg=angle_deg(hand_x, arm_x),
                      drift_mm=np.linalg.norm(held - held[0], axis=1), joints=joints,
-                     flange_fixed=flange_fixed, heading_deg=heading_deg)
+                     flange_fixed=flange_fixed, heading_deg=heading_deg,
+                     rate_hz=1.0 / record.period_s)
 
 
 def _check(what: str, code: int) -> None:
@@ -283,11 +290,17 @@ def _check(what: str, code: int) -> None:
 
 def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20.0,
                heading_deg: float = 10.0, flange_fixed: bool = False, seed: int = 5,
-               lead_s: float = 0.5, trajectory: HandTrajectory | None = None) -> FollowRun:
+               lead_s: float = 0.5, trajectory: HandTrajectory | None = None,
+               rate_hz: float = 100.0) -> FollowRun:
     """Start pose, Madgwick MARG filter started at the hand's true orientation, ``lead_s`` of
-    samples, then FollowImu for ``duration_s`` while the hand moves; returns the figures."""
+    samples, then FollowImu for ``duration_s`` while the hand moves; returns the figures.
+    ``rate_hz``: the IMU's sample rate, 100 Hz divided by a whole number of scans."""
+    scans_per_sample = round(1.0 / (rate_hz * SCAN_S))
+    if not (scans_per_sample >= 1 and math.isclose(scans_per_sample * rate_hz * SCAN_S, 1.0)):
+        raise DemoError(f"the IMU rate must be 100 Hz divided by a whole number (the 10 ms "
+                        f"scan writes the samples), got {rate_hz} Hz")
     traj = trajectory or demo_trajectory(heading_deg)
-    record = simulate(traj, ImuModel(), duration_s=duration_s + lead_s + 0.5, rate_hz=100.0,
+    record = simulate(traj, ImuModel(), duration_s=duration_s + lead_s + 0.5, rate_hz=rate_hz,
                       seed=seed)
     with PlcClient(*address) as modbus, ArmControllerClient(modbus) as c:
         st = c.move_tool_angles(START_TIP_MM, 0.0, 0.0, wait=True)
@@ -296,7 +309,7 @@ def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20
         _check("ImuSetPeriod", c.imu_set_period(record.period_s))
         _check("ImuReset", c.imu_reset(tuple(float(v) for v in record.quat_true[0])))
         lead = int(round(lead_s / record.period_s))
-        rig.play(record, 1)
+        rig.play(record, 1, scans_per_sample)
         rig.wait_samples(lead)
         rig.start_recording()
         st = c.follow_imu(flange_fixed=flange_fixed, heading_deg=heading_deg)
@@ -323,7 +336,8 @@ def settled(run: FollowRun, after_s: float = 2.0) -> npt.NDArray[np.bool_]:
 
 def print_report(run: FollowRun, out: TextIO) -> None:
     mode = "flange-fixed" if run.flange_fixed else "tip-fixed"
-    out.write(f"FollowImu, {mode}, heading {run.heading_deg:g} deg; hand = ground truth, "
+    out.write(f"FollowImu, {mode}, heading {run.heading_deg:g} deg, IMU at "
+              f"{run.rate_hz:g} Hz; hand = ground truth, "
               "arm = FK of the joint outputs (base frame)\n")
     held = "flange" if run.flange_fixed else "tip"
     out.write(f"  t s   hand tool direction    arm tool direction   error  {held} drift"
@@ -343,29 +357,63 @@ def print_report(run: FollowRun, out: TextIO) -> None:
               f"{run.drift_mm[ok].max():.3f} mm (whole run {run.drift_mm.max():.3f} mm)\n")
 
 
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return value
+
+
+def follow_seconds(text: str) -> float:
+    """The follow time, 1..600 s."""
+    value = _finite(text)
+    if not 1.0 <= value <= 600.0:
+        raise argparse.ArgumentTypeError(f"must lie in 1..600 s, got {value:g}")
+    return value
+
+
+def heading(text: str) -> float:
+    """FollowImu's heading, |deg| <= 360."""
+    value = _finite(text)
+    if not abs(value) <= 360.0:
+        raise argparse.ArgumentTypeError(f"must lie within +/-360 deg, got {value:g}")
+    return value
+
+
+def imu_rate(text: str) -> float:
+    """An IMU rate the 10 ms scan can write: 100 Hz divided by a whole number."""
+    value = _finite(text)
+    spacing = 1.0 / (value * SCAN_S) if value > 0.0 else 0.0
+    if not (spacing >= 1.0 and math.isclose(spacing, round(spacing))):
+        raise argparse.ArgumentTypeError(f"must be 100 Hz divided by a whole number "
+                                         f"(100, 50, 25, ...), got {value:g}")
+    return value
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seconds", type=float, default=20.0, help="follow time (default 20 s)")
-    p.add_argument("--heading", type=float, default=10.0,
+    p.add_argument("--seconds", type=follow_seconds, default=20.0,
+                   help="follow time, s (default 20)")
+    p.add_argument("--heading", type=heading, default=10.0,
                    help="the arm's X axis from magnetic north, deg (default 10)")
     p.add_argument("--flange-fixed", action="store_true",
                    help="hold the flange point instead of the tool tip")
-    p.add_argument("--seed", type=int, default=5, help="noise seed of the simulated IMU")
+    p.add_argument("--seed", type=argtypes.count, default=5,
+                   help="noise seed of the simulated IMU (default 5)")
+    p.add_argument("--rate", type=imu_rate, default=100.0,
+                   help="IMU sample rate, Hz: 100 divided by a whole number (default 100)")
 
 
-def run_from_args(args: argparse.Namespace, out: TextIO = sys.stdout) -> int:
-    if not (math.isfinite(args.seconds) and 1.0 <= args.seconds <= 600.0):
-        out.write(f"--seconds must lie in 1..600, got {args.seconds}\n")
-        return 2
-    if not (math.isfinite(args.heading) and abs(args.heading) <= 360.0):
-        out.write(f"--heading must lie within +/-360 deg, got {args.heading}\n")
-        return 2
+def run_from_args(args: argparse.Namespace, out: TextIO | None = None) -> int:
     try:
         with paced_controller() as ctl:
             run = run_follow(ctl.address, ctl.rig, duration_s=args.seconds,
                              heading_deg=args.heading, flange_fixed=args.flange_fixed,
-                             seed=args.seed)
+                             seed=args.seed, rate_hz=args.rate)
     except (CommandRejected, DemoError) as exc:
-        out.write(f"demo-imu failed: {exc}\n")
+        print(f"demo-imu failed: {exc}", file=sys.stderr)
         return 1
-    print_report(run, out)
+    print_report(run, out or sys.stdout)
     return 0
