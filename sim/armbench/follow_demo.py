@@ -51,6 +51,8 @@ TASK_NS = 10_000_000
 START_TIP_MM = (239.08, 0.0, 193.34)
 _OUT_NAMES = ("OUTBASEDEG", "OUTSHOULDERDEG", "OUTELBOWDEG", "OUTWRISTPITCHDEG",
               "OUTWRISTROLLDEG")
+_SET_NAMES = ("SETBASEDEG", "SETSHOULDERDEG", "SETELBOWDEG", "SETWRISTPITCHDEG",
+              "SETWRISTROLLDEG")
 
 
 class DemoError(RuntimeError):
@@ -122,6 +124,8 @@ def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray:
 class ScanRow:
     sample: int  # index of the last sample written before the scan (-1: none yet)
     joints: tuple[float, ...]  # deg, slew limiter outputs after the scan
+    setpoints: tuple[float, ...] = ()  # deg, the motion group's setpoints (limiter input)
+    follow_state: int = 0  # FollowState after the scan: 0 off, 1 following, 2 braking
 
 
 @dataclass
@@ -139,6 +143,8 @@ class HandRig:
     recording: bool = False
     rows: list[ScanRow] = field(default_factory=list)
     _out_md: tuple[int, ...] = field(init=False)
+    _set_md: tuple[int, ...] = field(init=False)
+    _state_md: int = field(init=False)
     _mutex: threading.Lock = field(default_factory=threading.Lock)
     _scans: int = 0
 
@@ -148,6 +154,8 @@ class HandRig:
             self.feeder.seq = self.image.iw[controller_map()["IMUSAMPLESEQ"].index]
         cmap = controller_map()
         self._out_md = tuple(cmap[n].index for n in _OUT_NAMES)
+        self._set_md = tuple(cmap[n].index for n in _SET_NAMES)
+        self._state_md = cmap["FOLLOWSTATE"].index
 
     def play(self, record: ImuRecord, start: int = 0, scans_per_sample: int = 1) -> None:
         if not 1 <= scans_per_sample <= 100:
@@ -174,9 +182,17 @@ class HandRig:
         return self._scans
 
     def outputs(self) -> tuple[float, ...]:
+        """The slew limiter's five joint outputs, deg."""
+        return self._floats(self._out_md)
+
+    def setpoints(self) -> tuple[float, ...]:
+        """The motion group's five joint setpoints, deg."""
+        return self._floats(self._set_md)
+
+    def _floats(self, md: tuple[int, ...]) -> tuple[float, ...]:
         with self.lock:
-            words = [self.image.md[i] for i in self._out_md]
-        return struct.unpack("<5f", struct.pack("<5I", *words))
+            words = [self.image.md[i] for i in md]
+        return struct.unpack(f"<{len(words)}f", struct.pack(f"<{len(words)}I", *words))
 
     def wait_samples(self, index: int, timeout_s: float = 60.0) -> None:
         """Block until the sample ``index`` has been written (or playing stopped)."""
@@ -190,7 +206,10 @@ class HandRig:
         self._scans += 1
         with self._mutex:
             if self.recording:
-                self.rows.append(ScanRow(self.next_index - 1, self.outputs()))
+                with self.lock:
+                    state = self.image.md[self._state_md]
+                self.rows.append(ScanRow(self.next_index - 1, self.outputs(),
+                                         self.setpoints(), state))
             rec = self.record
             if self.playing and rec is not None and self._scans % self.scans_per_sample == 0:
                 if self.next_index >= len(rec):

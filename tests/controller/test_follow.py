@@ -133,8 +133,8 @@ def test_sample_timeout_brakes(ctl: ArmControllerClient, rig: HandRig) -> None:
     start(ctl, rig, record)
     rig.wait_samples(20 + 180)  # the hand moves fast (tool pitch up to 47 deg/s)
     rig.pause()  # the IMU goes silent in mid-motion
-    before = rig.scans
     outcome = ctl.wait_motion(timeout_s=20.0)
+    ctl.wait_scans(3)  # the rig records a scan's outputs before the next one
     rows = rig.take_rows()
     assert outcome.state == "error" and outcome.error_id == ERR_IMU_TIMEOUT
     assert ctl.follow_state().error_id == ERR_IMU_TIMEOUT
@@ -146,9 +146,17 @@ def test_sample_timeout_brakes(ctl: ArmControllerClient, rig: HandRig) -> None:
     speed = np.abs(np.diff(joints, axis=0)).max(axis=1) / SCAN_S
     assert speed[silent - 5:silent].max() > 5.0
     assert speed[-3:].max() < 1e-3
-    # the timeout counts scans: the brake starts FOLLOW_TIMEOUT_SCANS scans after the last
-    # sample, so the arm moved on for at most that long plus the braking time
-    assert rig.scans - before >= FOLLOW_TIMEOUT_SCANS
+    # between samples the follow holds the last IK setpoints: after the last one the limiter
+    # brings the servos to rest exactly there (no overshoot, within the limits), and the
+    # follow ends FOLLOW_TIMEOUT_SCANS scans later (+1: a sample is filtered at the end of a
+    # scan, the follow steps in the next), braking from rest
+    setpoints = np.array([r.setpoints for r in rows])
+    last = setpoints[silent + 2]
+    assert np.abs(setpoints[silent + 2:] - last).max() < 1e-4
+    assert np.abs(joints[-1] - last).max() < 1e-3
+    ended = next(i for i in range(silent, len(rows)) if rows[i].follow_state != 1)
+    assert FOLLOW_TIMEOUT_SCANS <= ended - silent <= FOLLOW_TIMEOUT_SCANS + 3
+    assert speed[silent + FOLLOW_TIMEOUT_SCANS:].max() < 1e-3  # at rest before the end
     finite_block(ctl)
 
 
