@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from armbench.follow_demo import FollowRun, paced_controller, run_follow
+from armbench.follow_demo import FollowRun, paced_controller, print_report, run_follow
 from armbench.plots.cli import figure_target
 
 DURATION_S = 20.0
@@ -57,6 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with paced_controller() as ctl:
         run = run_follow(ctl.address, ctl.rig, duration_s=DURATION_S, heading_deg=HEADING_DEG,
                          seed=SEED)
+    print_report(run, sys.stdout)  # the figures the page quotes
     print(follow_figure(out / FIGURE, run))
     return 0
 
