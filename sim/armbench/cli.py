@@ -1,4 +1,4 @@
-"""armbench command line: check, build, run, serve, export, demo.
+"""armbench command line: check, build, run, serve, export, demo, demo-imu.
 
 Programs are compiled with the armbench ST library (armbench.locate) unless --no-library.
 Exit codes: 0 ok, 1 diagnostics or fault, 2 usage (one line on stderr).
@@ -257,6 +257,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return run_from_args(args)
 
 
+def cmd_demo_imu(args: argparse.Namespace) -> int:
+    from .follow_demo import run_from_args as run_follow_demo
+
+    return run_follow_demo(args)
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     from .export import generate
 
@@ -361,6 +367,11 @@ def make_parser() -> argparse.ArgumentParser:
     from .demo import add_arguments
     add_arguments(d)
     d.set_defaults(func=cmd_demo)
+    di = sub.add_parser("demo-imu", help="the simulated hand's IMU drives the 5-axis arm's "
+                        "tool over Modbus (FollowImu), in simulated time")
+    from .follow_demo import add_arguments as add_follow_arguments
+    add_follow_arguments(di)
+    di.set_defaults(func=cmd_demo_imu)
     return p
 
 

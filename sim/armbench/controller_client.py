@@ -75,6 +75,12 @@ CMD_IMU_RESET = _K["CmdImuReset"]
 IMU_FILTERS = {"gyro": _K["ImuFilterGyro"], "complementary": _K["ImuFilterCompl"],
                "madgwick_imu": _K["ImuFilterMadgwick"], "madgwick_marg": _K["ImuFilterMarg"]}
 ERR_BAD_QUATERNION = _K["OErr.BadQuaternion"]
+CMD_FOLLOW_IMU = _K["CmdFollowImu"]
+FOLLOW_FLAG_START = _K["FollowFlagStart"]
+FOLLOW_FLAG_FLANGE_FIXED = _K["FollowFlagFlangeFixed"]
+FOLLOW_TIMEOUT_SCANS = _K["FollowTimeoutScans"]
+KIND_FOLLOW = _K["KindFollow"]
+ERR_IMU_TIMEOUT = _K["CtlErr.ImuTimeout"]
 KIND_JOINT = _K["KindJoint"]
 KIND_LINE = _K["KindLine"]
 KIND_JOG = _K["KindJog"]
@@ -154,6 +160,12 @@ _IMU_FIELDS = ("ImuSamples", "ImuErrorId", "ImuRejected", "ImuMissed", "ImuQuatW
                "ImuGyroBiasY", "ImuGyroBiasZ", "ImuAccelScaleX", "ImuAccelScaleY",
                "ImuAccelScaleZ", "ImuMagOffsetX", "ImuMagOffsetY", "ImuMagOffsetZ",
                "ImuLastSeq")
+_FOLLOW_FIELDS = ("FollowState", "FollowErrorId", "FollowAborted", "FollowFlangeFixed",
+                  "FollowHeadingDeg", "FollowDeadBandDeg", "FollowMaxRateDps", "FollowAnchorX",
+                  "FollowAnchorY", "FollowAnchorZ", "FollowDirX", "FollowDirY", "FollowDirZ",
+                  "FollowPitchDeg", "FollowRollDeg", "FollowLagDeg", "FollowOffPlaneDeg",
+                  "FollowErrorDeg", "FollowDriftMm", "FollowUnreachable", "FollowUnreachCount",
+                  "FollowUnreachId", "FollowSteps")
 _RESULT_PREFIXES = ("ResBase", "ResShoulder", "ResElbow", "ResX", "ResY", "ResZ", "ResErrorId")
 
 # Between two looks at the answer, the client re-reads its command block this often (s): a
@@ -373,6 +385,44 @@ class ImuState:
                    int(v[14]), float(v[15]), float(v[16]), v3(17), v3(20), v3(23), int(v[26]))
 
 
+@dataclass(frozen=True)
+class FollowState:
+    """The FollowImu block (%MD877..899): the follow's state and figures."""
+
+    state: int  # 0 off, 1 following, 2 braking
+    error_id: int  # why the last follow ended: 0, ERR_IMU_TIMEOUT, the filter's code
+    aborted: bool  # a Stop, a new motion or Relax took it over
+    flange_fixed: bool
+    heading_deg: float  # the arm's X axis from magnetic north, about Z up
+    dead_band_deg: float
+    max_rate_dps: float
+    anchor_mm: tuple[float, float, float]  # the held point (tip or flange)
+    direction: tuple[float, float, float]  # commanded unit tool direction, base frame
+    pitch_deg: float
+    roll_deg: float
+    lag_deg: float  # follower orientation vs the hand's (dead band, rate limit)
+    off_plane_deg: float  # hand direction out of the arm plane (not followable)
+    error_deg: float  # hand tool direction vs FK of the output stage
+    drift_mm: float  # output stage's held point from the anchor
+    unreachable: bool  # the last sample was unreachable: the arm holds
+    unreachable_count: int
+    unreachable_id: int
+    steps: int  # samples followed since the start
+
+    @property
+    def following(self) -> bool:
+        return self.state == 1
+
+    @classmethod
+    def decode(cls, v: Sequence[float]) -> FollowState:
+        def v3(k: int) -> tuple[float, float, float]:
+            return (float(v[k]), float(v[k + 1]), float(v[k + 2]))
+        return cls(int(v[0]), int(v[1]), bool(v[2]), bool(v[3]), float(v[4]), float(v[5]),
+                   float(v[6]), v3(7), v3(10), float(v[13]), float(v[14]), float(v[15]),
+                   float(v[16]), float(v[17]), float(v[18]), bool(v[19]), int(v[20]),
+                   int(v[21]), int(v[22]))
+
+
 def lut_target_mm(value_mm100: int) -> float:
     """The REAL (mm) that carries a 0.01 mm integer to the PLC: value / 100. The PLC's
     REAL_TO_DINT(mm * 100.0) gives the integer back exactly for every |value| <= 1,000,000
@@ -556,6 +606,7 @@ class ArmControllerClient:
         self._gripper = _Block.of(_GRIPPER_FIELDS)
         self._gripper_cal = _Block.of(f"GripperCal{s}" for s in _CAL_SUFFIXES)
         self._imu = _Block.of(_IMU_FIELDS)
+        self._follow = _Block.of(_FOLLOW_FIELDS)
         cmap = controller_map()
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
@@ -1197,6 +1248,35 @@ class ArmControllerClient:
         if quat is None:
             return self.command(CMD_IMU_RESET, ints=(0, 1)).error_id
         return self.command(CMD_IMU_RESET, ints=(0, 0), args=tuple(quat)).error_id
+
+    def follow_imu(self, *, flange_fixed: bool = False, dead_band_deg: float = 0.0,
+                   max_rate_dps: float = 0.0, heading_deg: float = 0.0,
+                   mount_rpy_deg: Sequence[float] = (0.0, 0.0, 0.0)) -> Status:
+        """FollowImu start: the tool follows the fused orientation, holding the tool tip (or,
+        ``flange_fixed``, the flange point) where it stands. ``heading_deg``: the arm's X axis
+        from magnetic north, counter-clockwise about Z up. ``mount_rpy_deg``: the sensor's
+        mounting (Z-Y-X roll, pitch, yaw). 0.0 dead band / rate = the defaults (2 deg,
+        90 deg/s). A motion of this client: ``error_id`` 0 = following."""
+        if len(mount_rpy_deg) != 3:
+            raise ValueError(f"follow_imu: mount_rpy_deg needs roll, pitch, yaw, got "
+                             f"{len(mount_rpy_deg)} values")
+        flags = FOLLOW_FLAG_START | (FOLLOW_FLAG_FLANGE_FIXED if flange_fixed else 0)
+        return self._motion_command(CMD_FOLLOW_IMU, (flags, 0),
+                                    (dead_band_deg, max_rate_dps, heading_deg,
+                                     *mount_rpy_deg), False)
+
+    def follow_imu_stop(self, wait: bool = False) -> Status:
+        """FollowImu stop: the follow this client started brakes to rest (108 otherwise)."""
+        st = self.command(CMD_FOLLOW_IMU, ints=(0, 0))
+        if wait and st.error_id == ERR_OK and self.last_ticket is not None:
+            self.wait_motion(self.last_ticket)
+            return self._io(self.status, time.monotonic() + self.timeout_s)
+        return st
+
+    def follow_state(self) -> FollowState:
+        """The FollowImu block (one read: a consistent snapshot)."""
+        return FollowState.decode(self._follow.decode(self._read(self._follow.address,
+                                                                 self._follow.length)))
 
 
 @dataclass

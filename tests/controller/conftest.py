@@ -27,18 +27,24 @@ def fast_controller() -> Iterator[FastPlc]:
     server.start()
     stop = threading.Event()
 
+    fast: FastPlc | None = None
+
     def run() -> None:
         now = 0
         plc.run()
         while not stop.is_set():
+            if fast is not None:
+                for hook in list(fast.before_scan):
+                    hook()
             plc.step(now)
             now += TASK_NS
             time.sleep(0.0002)  # about 5,000 scans/s: room for the Modbus threads
 
+    fast = FastPlc(plc, ("127.0.0.1", server.port))
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
     try:
-        yield FastPlc(plc, ("127.0.0.1", server.port))
+        yield fast
     finally:
         stop.set()
         thread.join(5.0)

@@ -230,7 +230,7 @@ def test_bad_commands_change_nothing(ctl: ArmControllerClient, call: tuple[str, 
 def test_bad_filter_and_free_codes(ctl: ArmControllerClient) -> None:
     assert ctl.command(40, ints=(4, 0)).error_id == ERR_BAD_PARAMETER
     assert ctl.command(CMD_IMU_RESET, ints=(0, 2), args=(1.0,)).error_id == ERR_BAD_PARAMETER
-    assert ctl.command(46).error_id == ERR_UNKNOWN_COMMAND
+    assert ctl.command(47).error_id == ERR_UNKNOWN_COMMAND  # 46 is FollowImu, 47..49 free
 
 
 @pytest.mark.parametrize("method", ["gyro", "complementary", "madgwick_imu", "madgwick_marg"])

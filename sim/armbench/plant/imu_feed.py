@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 from armbench.plant.imu import ImuRecord
 from armbench.registermap import controller_map
+from armbench.softplc.fastpath import ImageLock
 from armbench.softplc.image import ProcessImage
 
 _RAW_NAMES = ("ImuGyroX", "ImuGyroY", "ImuGyroZ", "ImuAccelX", "ImuAccelY", "ImuAccelZ",
@@ -38,7 +39,7 @@ class ImuFeeder:
     """Writes raw samples into ``image`` (the soft PLC's process image) under ``lock``."""
 
     image: ProcessImage
-    lock: threading.Lock
+    lock: threading.Lock | ImageLock  # SoftPlc.lock (an ImageLock with the C fast path)
     timeout_s: float = 5.0
     seq: int = 0  # the counter value of the last sample written
     _raw_iw: tuple[int, ...] = field(init=False)

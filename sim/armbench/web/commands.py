@@ -89,6 +89,7 @@ class Prepared:
 _ELBOW = (0, "elbow up"), (1, "elbow down")
 _PROFILES = ((0, "constant speed per joint"), (1, "synchronised constant speed"),
              (2, "trapezoid"), (3, "jerk-limited"))
+_FOLLOW_MODES = ((1, "start, tip fixed"), (3, "start, flange fixed"), (0, "stop"))
 _TOOL_MODES = ((0, "elbow up, tip fixed"), (1, "elbow down, tip fixed"),
                (2, "elbow up, flange fixed"), (3, "elbow down, flange fixed"))
 _WRIST_JOG_MODES = ((0, "tip fixed"), (2, "flange fixed (only the wrist moves)"))
@@ -207,6 +208,18 @@ COMMANDS: tuple[CommandSpec, ...] = (
                 "Open the gripper (channel 5) to a percentage of its calibrated travel: "
                 "0 closed, 100 open. No arm motion starts or ends.",
                 (Field("opening", "Opening", "Arg1", default=50.0, unit="%"),)),
+    CommandSpec("CmdFollowImu", "Follow the IMU",
+                "5-axis arm: the tool follows the fused IMU orientation (pitch and roll; the "
+                "tip or flange held where it stands), or stops following. Brakes by itself "
+                "0.5 s after the last IMU sample.",
+                (Field("mode", "Start / mode", "Int1", "choice", 1, choices=_FOLLOW_MODES),
+                 Field("deadband", "Dead band (0 = 2)", "Arg1", default=0.0, unit="deg"),
+                 Field("rate", "Max rate (0 = 90)", "Arg2", default=0.0, unit="deg/s"),
+                 Field("heading", "Arm X from magnetic north", "Arg3", default=0.0,
+                       unit="deg"),
+                 Field("mroll", "Mount roll", "Arg4", default=0.0, unit="deg"),
+                 Field("mpitch", "Mount pitch", "Arg5", default=0.0, unit="deg"),
+                 Field("myaw", "Mount yaw", "Arg6", default=0.0, unit="deg"))),
     CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
                 "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",
                 (Field("x", "X", "Arg1", default=150.0, unit="mm"),
