@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 
 
 def port(text: str) -> int:
@@ -53,6 +54,22 @@ def update_rate(text: str) -> float:
     if not 1.0 <= value <= 1000.0:
         raise argparse.ArgumentTypeError(f"must be 1..1000 Hz, got {text}")
     return value
+
+
+def float_between(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """A finite number within low..high (unit: for the message)."""
+    def parse(text: str) -> float:
+        value = _float(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must lie in {low:g}..{high:g} {unit}, "
+                                             f"got {value:g}")
+        return value
+    return parse
+
+
+def finite(text: str) -> float:
+    """Any finite number."""
+    return _float(text)
 
 
 def _int(text: str) -> int:

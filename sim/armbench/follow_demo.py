@@ -376,35 +376,9 @@ def print_report(run: FollowRun, out: TextIO) -> None:
               f"{run.drift_mm[ok].max():.3f} mm (whole run {run.drift_mm.max():.3f} mm)\n")
 
 
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
-    return value
-
-
-def follow_seconds(text: str) -> float:
-    """The follow time, 1..600 s."""
-    value = _finite(text)
-    if not 1.0 <= value <= 600.0:
-        raise argparse.ArgumentTypeError(f"must lie in 1..600 s, got {value:g}")
-    return value
-
-
-def heading(text: str) -> float:
-    """FollowImu's heading, |deg| <= 360."""
-    value = _finite(text)
-    if not abs(value) <= 360.0:
-        raise argparse.ArgumentTypeError(f"must lie within +/-360 deg, got {value:g}")
-    return value
-
-
 def imu_rate(text: str) -> float:
     """An IMU rate the 10 ms scan can write: 100 Hz divided by a whole number."""
-    value = _finite(text)
+    value = argtypes.finite(text)
     spacing = 1.0 / (value * SCAN_S) if value > 0.0 else 0.0
     if not (spacing >= 1.0 and math.isclose(spacing, round(spacing))):
         raise argparse.ArgumentTypeError(f"must be 100 Hz divided by a whole number "
@@ -413,9 +387,10 @@ def imu_rate(text: str) -> float:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seconds", type=follow_seconds, default=20.0,
+    p.add_argument("--seconds", type=argtypes.float_between(1.0, 600.0, "s"), default=20.0,
                    help="follow time, s (default 20)")
-    p.add_argument("--heading", type=heading, default=10.0,
+    p.add_argument("--heading", type=argtypes.float_between(-360.0, 360.0, "deg"),
+                   default=10.0,
                    help="the arm's X axis from magnetic north, deg (default 10)")
     p.add_argument("--flange-fixed", action="store_true",
                    help="hold the flange point instead of the tool tip")

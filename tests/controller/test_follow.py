@@ -86,7 +86,8 @@ def assert_smooth(joints: np.ndarray) -> None:
 
 
 def start(ctl: ArmControllerClient, rig: HandRig, record: ImuRecord, *, heading: float = 10.0,
-          flange_fixed: bool = False) -> None:
+          flange_fixed: bool = False,
+          mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
     assert ctl.move_tool_angles(START_TIP_MM, 0.0, 0.0, wait=True).error_id == ERR_OK
     assert ctl.imu_select_filter("madgwick_marg", 0.0) == ERR_OK
     assert ctl.imu_set_period(record.period_s) == ERR_OK
@@ -94,7 +95,8 @@ def start(ctl: ArmControllerClient, rig: HandRig, record: ImuRecord, *, heading:
     rig.play(record, 1)
     rig.wait_samples(20)
     rig.start_recording()
-    assert ctl.follow_imu(heading_deg=heading, flange_fixed=flange_fixed).error_id == ERR_OK
+    assert ctl.follow_imu(heading_deg=heading, flange_fixed=flange_fixed,
+                          mount_rpy_deg=mount_rpy_deg).error_id == ERR_OK
 
 
 def finite_block(ctl: ArmControllerClient) -> None:
@@ -297,14 +299,7 @@ def test_mount_offset_rolls_the_tool(ctl: ArmControllerClient, rig: HandRig) -> 
     sensor's turned by +20 deg about x, so the arm rolls 20 deg further than the sensor."""
     record = simulate(_trajectory(((2.0, 0.2, 0.0),)), ImuModel(), duration_s=6.0,
                       rate_hz=100.0, seed=13)
-    assert ctl.move_tool_angles(START_TIP_MM, 0.0, 0.0, wait=True).error_id == ERR_OK
-    assert ctl.imu_select_filter("madgwick_marg", 0.0) == ERR_OK
-    assert ctl.imu_set_period(record.period_s) == ERR_OK
-    assert ctl.imu_reset(tuple(float(v) for v in record.quat_true[0])) == ERR_OK
-    rig.play(record, 1)
-    rig.wait_samples(20)
-    rig.start_recording()
-    assert ctl.follow_imu(heading_deg=10.0, mount_rpy_deg=(20.0, 0.0, 0.0)).error_id == ERR_OK
+    start(ctl, rig, record, heading=10.0, mount_rpy_deg=(20.0, 0.0, 0.0))
     rig.wait_samples(400)
     rows = rig.take_rows()
     rig.pause()
