@@ -400,3 +400,19 @@ def test_samples_before_a_start_or_when_disabled_do_nothing(st_module: Any) -> N
     assert not fb.Active
     sample(fb, quat(base_to_earth(tool_frame(Q0[0], 0.0, 0.0))))
     assert fb.Steps == 0 and list(fb.SetJoints)[:5] == pytest.approx(Q0, abs=1e-4)
+
+
+@pytest.mark.parametrize("acc", [-1.0, NAN, 2.0e6])
+def test_the_followers_acceleration_limit_is_checked(st_module: Any, acc: float) -> None:
+    fb = st_module.new_fb("ToolOrientationFollower")
+    fb.set(Enable=True, MountOffset=IDENT, CycleTimeS=DT)
+    fb(Reset=True, InitialQuat=IDENT, Target=IDENT)
+    goal = quat(Rotation.from_euler("Z", 40.0, degrees=True))
+    fb(Reset=False, Target=goal, MaxAccDps2=acc)
+    assert (fb.Error, fb.ErrorId) == (True, BAD_PARAMETER)
+    assert [fb.Orientation[k] for k in "WXYZ"] == [1.0, 0.0, 0.0, 0.0]
+    fb(MaxAccDps2=0.0)  # off again: the plain rate limit, full speed at once
+    assert not fb.Error
+    o = fb.Orientation
+    turned = math.degrees(2.0 * math.atan2(math.hypot(o["X"], o["Y"], o["Z"]), o["W"]))
+    assert turned == pytest.approx(0.9, abs=1e-3)
