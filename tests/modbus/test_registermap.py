@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 from armbench import registermap
 from armbench.controller_client import MAILBOXES
 
@@ -88,3 +90,16 @@ def test_batch_regions_are_current() -> None:
     from armbench.batchgen import main
 
     assert main(["--check"]) == 0, "run python -m armbench.batchgen"
+
+
+def test_register_map_doc_lists_every_command() -> None:
+    """Each command constant of Controller.st is described in the doc ("46 FollowImu ..."):
+    the doc copies the header's sections, and a line that looks like a section heading would
+    silently cut one short."""
+    text = registermap.DOC.read_text(encoding="utf-8")
+    commands = {name[3:]: code for name, code in registermap.controller_constants().items()
+                if name.startswith("Cmd") and not name.endswith("Last")}
+    assert len(commands) >= 30
+    missing = [f"{code} {name}" for name, code in commands.items()
+               if not re.search(rf"(?m)^ *{code} {name}\b", text)]
+    assert not missing, f"docs/register-map.md does not describe {missing}"
