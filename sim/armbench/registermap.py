@@ -122,7 +122,10 @@ def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceMode
 def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -> list[Register]:
     """The map of the (first, or named) program instance of the sources' CONFIGURATION,
     in declaration order. Raises CompileFailed when the sources do not check."""
-    inst = _instance(paths, instance)
+    return _registers(_instance(paths, instance))
+
+
+def _registers(inst: InstanceModel) -> list[Register]:
     sources: dict[str, list[str]] = {}
     regs: list[Register] = []
     for var in inst.pou.vars.values():
@@ -141,8 +144,12 @@ def constants(paths: Sequence[str | Path] = SOURCES,
               instance: str | None = None) -> dict[str, int]:
     """The program's integer VAR CONSTANTs (command codes, states, ...) by name, and the
     fields of its constant STRUCTs as `Var.Field` (error codes), from the ST itself."""
+    return _constants(_instance(paths, instance))
+
+
+def _constants(inst: InstanceModel) -> dict[str, int]:
     out: dict[str, int] = {}
-    for var in _instance(paths, instance).pou.vars.values():
+    for var in inst.pou.vars.values():
         if not var.constant:
             continue
         if isinstance(var.init, Literal) and var.init.kind == "int":
@@ -156,15 +163,21 @@ def constants(paths: Sequence[str | Path] = SOURCES,
 
 
 @cache
+def _controller_instance() -> InstanceModel:
+    # one analysis of the library + controller serves both the map and the constants
+    return _instance(SOURCES, None)
+
+
+@cache
 def controller_constants() -> dict[str, int]:
     """constants() of the controller, computed once per process."""
-    return constants()
+    return _constants(_controller_instance())
 
 
 @cache
 def controller_map() -> dict[str, Register]:
     """The controller's map by variable name (upper case), computed once per process."""
-    return {r.name.upper(): r for r in derive()}
+    return {r.name.upper(): r for r in _registers(_controller_instance())}
 
 
 def _header_sections(names: Sequence[str]) -> list[str]:
