@@ -183,3 +183,15 @@ def test_tool_direction_is_first_matrix_column(st_module: Any) -> None:
         got = st_module.call("QuatToolDirection", quat_dict(q))
         want = sp(q).apply([1.0, 0.0, 0.0])
         assert [got["X"], got["Y"], got["Z"]] == pytest.approx(want, abs=1e-6)
+
+
+def test_from_roll_pitch_yaw_matches_scipy_zyx(st_module: Any) -> None:
+    rng = np.random.default_rng(11)
+    worst = 0.0
+    for roll, pitch, yaw in rng.uniform(-180.0, 180.0, size=(CASES, 3)):
+        got = np.array(quat_row(st_module.call("QuatFromRollPitchYaw", float(roll),
+                                               float(pitch), float(yaw))))
+        want = Rotation.from_euler("ZYX", [yaw, pitch, roll], degrees=True)
+        worst = max(worst, same_rotation(got, want.as_quat(scalar_first=True)))
+    print(f"\nQuatFromRollPitchYaw worst {worst:.2e}")
+    assert worst < 1e-6
