@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pytest
 from fast_plc import FastPlc
+from imu_support import float32_physical
 
 from armbench.controller_client import ERR_OK, ArmControllerClient
 from armbench.plant.imu import HandTrajectory, ImuModel, simulate
@@ -33,13 +34,7 @@ BETA = 0.041
 def test_chip_registers_to_controller_filter(fast_controller: FastPlc) -> None:
     psm = load_psm_script("arm_io_psm_chain")
     record = simulate(HandTrajectory(), ImuModel(), duration_s=4.0, rate_hz=50.0, seed=5)
-    m = record.model
-
-    def conv(raw: np.ndarray, lsb: float) -> np.ndarray:
-        return (raw.astype(np.float32) / np.float32(lsb) - np.float32(0.0)).astype(np.float64)
-    gyro = conv(record.gyro_raw, m.gyro_lsb_per_dps)
-    accel = conv(record.accel_raw, m.accel_lsb_per_g)
-    mag = conv(record.mag_raw, m.mag_lsb_per_gauss)
+    gyro, accel, mag = float32_physical(record)
 
     board = Gy87Board()
     inputs = ImageVars(fast_controller.plc.image, fast_controller.plc.lock)
