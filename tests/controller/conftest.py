@@ -11,8 +11,10 @@ from collections.abc import Iterator
 import pytest
 from fast_plc import FastPlc
 
+from armbench.controller_client import ArmControllerClient
 from armbench.registermap import SOURCES
 from armbench.softplc.loader import load_program
+from armbench.softplc.modbus_client import PlcClient
 from armbench.softplc.modbus_server import ModbusServer
 from armbench.softplc.scan import SoftPlc
 
@@ -49,3 +51,10 @@ def fast_controller() -> Iterator[FastPlc]:
         stop.set()
         thread.join(5.0)
         server.stop()
+
+
+@pytest.fixture()
+def ctl(fast_controller: FastPlc) -> Iterator[ArmControllerClient]:
+    """A controller client on the fast PLC, its session closed after the test."""
+    with PlcClient(*fast_controller.address) as modbus, ArmControllerClient(modbus) as c:
+        yield c

@@ -68,12 +68,6 @@ def rig(fast_controller: FastPlc) -> Iterator[HandRig]:
             c.stop(wait=True)  # leave the arm at rest for the next test
 
 
-@pytest.fixture()
-def ctl(fast_controller: FastPlc) -> Iterator[ArmControllerClient]:
-    with PlcClient(*fast_controller.address) as modbus, ArmControllerClient(modbus) as c:
-        yield c
-
-
 def accelerations(joints: np.ndarray) -> np.ndarray:
     return np.diff(joints, n=2, axis=0) / SCAN_S ** 2
 

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import pytest
 from fast_plc import FastPlc
+from imu_support import float32_physical
 
 from armbench.controller_client import (
     CMD_IMU_RESET,
@@ -38,7 +38,6 @@ from armbench.plant.imu import (
 )
 from armbench.plant.imu_feed import ImuFeeder
 from armbench.registermap import controller_map
-from armbench.softplc.modbus_client import PlcClient
 
 ahrs_filters = pytest.importorskip("ahrs.filters")
 
@@ -46,22 +45,11 @@ AGREEMENT_TOL = 2.0e-6  # per quaternion component, as tests/unit/test_orientati
 RATE_HZ = 100.0
 
 
-@pytest.fixture(scope="module")
-def bench(fast_controller: FastPlc) -> FastPlc:
-    return fast_controller
-
-
 @pytest.fixture()
-def ctl(bench: FastPlc) -> Iterator[ArmControllerClient]:
-    with PlcClient(*bench.address) as modbus, ArmControllerClient(modbus) as c:
-        yield c
-
-
-@pytest.fixture()
-def feeder(bench: FastPlc) -> ImuFeeder:
-    f = ImuFeeder(bench.plc.image, bench.plc.lock)
-    with bench.plc.lock:  # continue the counter where an earlier test left it
-        f.seq = bench.plc.image.iw[controller_map()["IMUSAMPLESEQ"].index]
+def feeder(fast_controller: FastPlc) -> ImuFeeder:
+    f = ImuFeeder(fast_controller.plc.image, fast_controller.plc.lock)
+    with fast_controller.plc.lock:  # continue the counter where an earlier test left it
+        f.seq = fast_controller.plc.image.iw[controller_map()["IMUSAMPLESEQ"].index]
     return f
 
 
@@ -74,15 +62,15 @@ _QUAT_MD = tuple(controller_map()[n].index for n in ("IMUQUATW", "IMUQUATX", "IM
                                                        "IMUQUATZ"))
 
 
-def plc_quat(bench: FastPlc) -> np.ndarray:
+def plc_quat(fast_controller: FastPlc) -> np.ndarray:
     """The PLC's quaternion straight from the image (stable between two samples)."""
-    with bench.plc.lock:
-        words = [bench.plc.image.md[i] for i in _QUAT_MD]
+    with fast_controller.plc.lock:
+        words = [fast_controller.plc.image.md[i] for i in _QUAT_MD]
     return np.array(struct.unpack("<4f", struct.pack("<4I", *words)), dtype=np.float64)
 
 
-def run_plc(bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord,
-            method: str, gain: float, *, raw: dict[str, np.ndarray] | None = None
+def run_plc(fast_controller: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
+            record: ImuRecord, method: str, gain: float, *, raw: dict[str, np.ndarray] | None = None
             ) -> np.ndarray:
     """Start ``method`` at the true start orientation, feed samples 1..N-1; quaternion per
     sample (row 0 = the start)."""
@@ -92,27 +80,18 @@ def run_plc(bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder, record:
     g = record.gyro_raw if raw is None else raw["gyro"]
     a = record.accel_raw if raw is None else raw["accel"]
     m = record.mag_raw if raw is None else raw["mag"]
-    out = [plc_quat(bench)]
+    out = [plc_quat(fast_controller)]
     for k in range(1, len(record)):
         feeder.feed([*map(int, g[k]), *map(int, a[k]), *map(int, m[k])])
-        out.append(plc_quat(bench))
+        out.append(plc_quat(fast_controller))
     return np.array(out)
-
-
-def float32_physical(record: ImuRecord) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ImuRawToSample with the default calibration, in float32 (bit-identical to the PLC)."""
-    m = record.model
-
-    def conv(raw: np.ndarray, lsb: float) -> np.ndarray:
-        return (raw.astype(np.float32) / np.float32(lsb) - np.float32(0.0)).astype(np.float64)
-    return (conv(record.gyro_raw, m.gyro_lsb_per_dps), conv(record.accel_raw, m.accel_lsb_per_g),
-            conv(record.mag_raw, m.mag_lsb_per_gauss))
 
 
 @pytest.mark.parametrize(("method", "beta"), [("madgwick_imu", 0.033), ("madgwick_marg", 0.041),
                                               ("madgwick_marg", 0.2)])
-def test_plc_madgwick_matches_ahrs(bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
-                                   record: ImuRecord, method: str, beta: float) -> None:
+def test_plc_madgwick_matches_ahrs(fast_controller: FastPlc, ctl: ArmControllerClient,
+                                   feeder: ImuFeeder, record: ImuRecord, method: str,
+                                   beta: float) -> None:
     gyro, accel, mag = float32_physical(record)
     # ahrs skips the update when all three rates are exactly 0; the trajectory never rests
     assert not np.any(np.all(gyro == 0.0, axis=1))
@@ -125,7 +104,7 @@ def test_plc_madgwick_matches_ahrs(bench: FastPlc, ctl: ArmControllerClient, fee
         else:
             q = mw.updateMARG(q, np.radians(gyro[k]), accel[k], mag[k])
         want.append(q)
-    got = run_plc(bench, ctl, feeder, record, method, beta)
+    got = run_plc(fast_controller, ctl, feeder, record, method, beta)
     diff = np.abs(got - np.array(want)).max(axis=1)
     st = ctl.imu_state()
     print(f"\nPLC {method} beta={beta} vs ahrs, {len(record)} samples over Modbus/IW: "
@@ -135,10 +114,12 @@ def test_plc_madgwick_matches_ahrs(bench: FastPlc, ctl: ArmControllerClient, fee
     assert diff.max() < AGREEMENT_TOL
 
 
-def test_marg_stays_bounded_while_gyro_only_drifts(bench: FastPlc, ctl: ArmControllerClient,
-                                                   feeder: ImuFeeder, record: ImuRecord) -> None:
-    gyro = angle_between_deg(run_plc(bench, ctl, feeder, record, "gyro", 0.0), record.quat_true)
-    marg = angle_between_deg(run_plc(bench, ctl, feeder, record, "madgwick_marg", 0.041),
+def test_marg_stays_bounded_while_gyro_only_drifts(
+        fast_controller: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
+        record: ImuRecord) -> None:
+    gyro = angle_between_deg(run_plc(fast_controller, ctl, feeder, record, "gyro", 0.0),
+                             record.quat_true)
+    marg = angle_between_deg(run_plc(fast_controller, ctl, feeder, record, "madgwick_marg", 0.041),
                              record.quat_true)
     # the uncorrected bias (0.4, -0.3, 0.25) deg/s integrates to about |b| t = 11 deg in 20 s
     bias = float(np.linalg.norm(record.model.gyro_bias_dps))
@@ -151,15 +132,15 @@ def test_marg_stays_bounded_while_gyro_only_drifts(bench: FastPlc, ctl: ArmContr
     assert marg[half:].max() <= marg[:half].max() + 0.5
 
 
-def test_gyro_bias_calibration_takes_effect(bench: FastPlc, ctl: ArmControllerClient,
+def test_gyro_bias_calibration_takes_effect(fast_controller: FastPlc, ctl: ArmControllerClient,
                                             feeder: ImuFeeder, record: ImuRecord) -> None:
-    raw_err = angle_between_deg(run_plc(bench, ctl, feeder, record, "gyro", 0.0),
+    raw_err = angle_between_deg(run_plc(fast_controller, ctl, feeder, record, "gyro", 0.0),
                                 record.quat_true)[-1]
     assert ctl.imu_set_gyro_bias(record.model.gyro_bias_dps) == ERR_OK
     try:
         st = ctl.imu_state()
         assert st.gyro_bias_dps == pytest.approx(record.model.gyro_bias_dps, abs=1e-6)
-        cal_err = angle_between_deg(run_plc(bench, ctl, feeder, record, "gyro", 0.0),
+        cal_err = angle_between_deg(run_plc(fast_controller, ctl, feeder, record, "gyro", 0.0),
                                     record.quat_true)[-1]
     finally:
         assert ctl.imu_set_gyro_bias((0.0, 0.0, 0.0)) == ERR_OK
@@ -175,16 +156,17 @@ def _tampered(record: ImuRecord, accel_gain: float, mag_offset_lsb: np.ndarray
 
 
 def test_accel_scale_and_hard_iron_calibration_take_effect(
-        bench: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder, record: ImuRecord) -> None:
+        fast_controller: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
+        record: ImuRecord) -> None:
     short = replace(record, t=record.t[:800], quat_true=record.quat_true[:800],
                     gyro_true_dps=record.gyro_true_dps[:800],
                     gyro_bias_dps=record.gyro_bias_dps[:800], gyro_raw=record.gyro_raw[:800],
                     accel_raw=record.accel_raw[:800], mag_raw=record.mag_raw[:800])
     offset_gauss = np.array([0.15, -0.1, 0.05])
     tamper = _tampered(short, 1.25, offset_gauss * record.model.mag_lsb_per_gauss)
-    clean = angle_between_deg(run_plc(bench, ctl, feeder, short, "madgwick_marg", 0.2),
+    clean = angle_between_deg(run_plc(fast_controller, ctl, feeder, short, "madgwick_marg", 0.2),
                               short.quat_true)
-    bad = angle_between_deg(run_plc(bench, ctl, feeder, short, "madgwick_marg", 0.2,
+    bad = angle_between_deg(run_plc(fast_controller, ctl, feeder, short, "madgwick_marg", 0.2,
                                     raw=tamper), short.quat_true)
     assert ctl.imu_set_accel_scale((0.8, 1.0, 1.0)) == ERR_OK
     assert ctl.imu_set_mag_offset(offset_gauss) == ERR_OK
@@ -192,7 +174,7 @@ def test_accel_scale_and_hard_iron_calibration_take_effect(
         st = ctl.imu_state()
         assert st.accel_scale == pytest.approx((0.8, 1.0, 1.0), abs=1e-7)
         assert st.mag_offset_gauss == pytest.approx(offset_gauss, abs=1e-7)
-        fixed = angle_between_deg(run_plc(bench, ctl, feeder, short, "madgwick_marg", 0.2,
+        fixed = angle_between_deg(run_plc(fast_controller, ctl, feeder, short, "madgwick_marg", 0.2,
                                           raw=tamper), short.quat_true)
     finally:
         assert ctl.imu_set_accel_scale((1.0, 1.0, 1.0)) == ERR_OK
@@ -234,9 +216,9 @@ def test_bad_filter_and_free_codes(ctl: ArmControllerClient) -> None:
 
 
 @pytest.mark.parametrize("method", ["gyro", "complementary", "madgwick_imu", "madgwick_marg"])
-def test_zero_and_saturated_samples_never_give_nan(bench: FastPlc, ctl: ArmControllerClient,
-                                                   feeder: ImuFeeder, record: ImuRecord,
-                                                   method: str) -> None:
+def test_zero_and_saturated_samples_never_give_nan(
+        fast_controller: FastPlc, ctl: ArmControllerClient, feeder: ImuFeeder,
+        record: ImuRecord, method: str) -> None:
     assert ctl.imu_select_filter(method) == ERR_OK
     assert ctl.imu_set_period(record.period_s) == ERR_OK
     assert ctl.imu_reset(tuple(record.quat_true[0])) == ERR_OK
@@ -261,7 +243,7 @@ def test_zero_and_saturated_samples_never_give_nan(bench: FastPlc, ctl: ArmContr
     assert ctl.imu_state().rejected == len(bad_samples) - (method == "gyro")
 
 
-def test_counter_jumps_count_missed_samples(bench: FastPlc, ctl: ArmControllerClient,
+def test_counter_jumps_count_missed_samples(fast_controller: FastPlc, ctl: ArmControllerClient,
                                             feeder: ImuFeeder, record: ImuRecord) -> None:
     assert ctl.imu_reset() == ERR_OK
     raw = [*map(int, record.gyro_raw[1]), *map(int, record.accel_raw[1]),

@@ -10,18 +10,18 @@ float32 as ImuRawToSample does. A wrong register, byte order or axis order anywh
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 from fast_plc import FastPlc
+from imu_support import float32_physical
 
 from armbench.controller_client import ERR_OK, ArmControllerClient
 from armbench.plant.imu import HandTrajectory, ImuModel, simulate
 from armbench.plant.imu_chips import Gy87Board
 from armbench.registermap import controller_map
 from armbench.softplc.modbus_client import PlcClient
-from psm_script import load_psm_script
+from psm_script import ImageVars, load_psm_script
 
 ahrs_filters = pytest.importorskip("ahrs.filters")
 
@@ -31,44 +31,20 @@ BETA = 0.041
 
 
 
-@dataclass
-class PlcInputs:
-    """psm.get_var/set_var on the soft PLC's input words (what OpenPLC's PSM layer feeds)."""
-
-    bench: FastPlc
-
-    def get_var(self, name: str) -> object:
-        with self.bench.plc.lock:
-            return self.bench.plc.image.iw[int(name.removeprefix("IW"))]
-
-    def set_var(self, name: str, value: object) -> None:
-        start = int(name.removeprefix("IW"))
-        values = value if isinstance(value, list) else [value]
-        with self.bench.plc.lock:  # the runtime copies the PSM's words between two scans
-            for i, v in enumerate(values):
-                self.bench.plc.image.iw[start + i] = int(v)
-
-
 def test_chip_registers_to_controller_filter(fast_controller: FastPlc) -> None:
     psm = load_psm_script("arm_io_psm_chain")
     record = simulate(HandTrajectory(), ImuModel(), duration_s=4.0, rate_hz=50.0, seed=5)
-    m = record.model
-
-    def conv(raw: np.ndarray, lsb: float) -> np.ndarray:
-        return (raw.astype(np.float32) / np.float32(lsb) - np.float32(0.0)).astype(np.float64)
-    gyro = conv(record.gyro_raw, m.gyro_lsb_per_dps)
-    accel = conv(record.accel_raw, m.accel_lsb_per_g)
-    mag = conv(record.mag_raw, m.mag_lsb_per_gauss)
+    gyro, accel, mag = float32_physical(record)
 
     board = Gy87Board()
-    inputs = PlcInputs(fast_controller)
+    inputs = ImageVars(fast_controller.plc.image, fast_controller.plc.lock)
     taken_md = controller_map()["IMULASTSEQ"].index
     quat_md = [controller_map()[n].index for n in ("IMUQUATW", "IMUQUATX", "IMUQUATY",
                                                     "IMUQUATZ")]
     reader = psm.ImuReader(bus=board, plc=inputs, period_s=record.period_s,
                            sleep=lambda _s: None, log=lambda _m: None)
-    with inputs.bench.plc.lock:  # continue the counter where an earlier test left it
-        reader.seq = inputs.bench.plc.image.iw[9]
+    with inputs.lock:  # continue the counter where an earlier test left it
+        reader.seq = inputs.image.iw[9]
     with PlcClient(*fast_controller.address) as modbus, ArmControllerClient(modbus) as ctl:
         assert ctl.imu_select_filter("madgwick_marg", BETA) == ERR_OK
         assert ctl.imu_set_period(record.period_s) == ERR_OK
@@ -83,9 +59,9 @@ def test_chip_registers_to_controller_filter(fast_controller: FastPlc) -> None:
             assert reader.poll(float(record.t[k]))
             deadline = time.monotonic() + 5.0
             while True:
-                with inputs.bench.plc.lock:
-                    if inputs.bench.plc.image.md[taken_md] == reader.seq:
-                        words = [inputs.bench.plc.image.md[i] for i in quat_md]
+                with inputs.lock:
+                    if inputs.image.md[taken_md] == reader.seq:
+                        words = [inputs.image.md[i] for i in quat_md]
                         break
                 assert time.monotonic() < deadline, "the PLC did not take the PSM's sample"
                 time.sleep(0.0005)

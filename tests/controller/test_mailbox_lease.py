@@ -20,13 +20,8 @@ from armbench.controller_client import (
 from armbench.softplc.modbus_client import PlcClient
 
 
-@pytest.fixture(scope="module")
-def fast_plc(fast_controller: FastPlc) -> tuple[str, int]:
-    return fast_controller.address
-
-
-def test_silent_owner_loses_mailbox_and_batch_buffer(fast_plc: tuple[str, int]) -> None:
-    with PlcClient(*fast_plc) as modbus:
+def test_silent_owner_loses_mailbox_and_batch_buffer(fast_controller: FastPlc) -> None:
+    with PlcClient(*fast_controller.address) as modbus:
         a = ArmControllerClient(modbus)
         assert a.command(CMD_RESERVE_BATCH).error_id == ERR_OK
         k = a.mailbox
@@ -40,8 +35,8 @@ def test_silent_owner_loses_mailbox_and_batch_buffer(fast_plc: tuple[str, int]) 
         assert a.move_joints(1.0, 70.0, 65.0).error_id == ERR_OK
 
 
-def test_renewed_lease_is_kept(fast_plc: tuple[str, int]) -> None:
-    with PlcClient(*fast_plc) as modbus, ArmControllerClient(modbus) as a:
+def test_renewed_lease_is_kept(fast_controller: FastPlc) -> None:
+    with PlcClient(*fast_controller.address) as modbus, ArmControllerClient(modbus) as a:
         a.hello()
         k = a.mailbox
         for _ in range(3):
@@ -51,10 +46,10 @@ def test_renewed_lease_is_kept(fast_plc: tuple[str, int]) -> None:
 
 
 def test_a_client_silent_past_the_lease_is_told_it_cannot_know(
-        fast_plc: tuple[str, int]) -> None:
+        fast_controller: FastPlc) -> None:
     """Its command ran, the mailbox expired and was taken over, and only then did it look:
     the client must not guess (resend = run twice, give up = maybe lost)."""
-    with PlcClient(*fast_plc) as modbus:
+    with PlcClient(*fast_controller.address) as modbus:
         a = ArmControllerClient(modbus)
         a.hello()
         k = a.mailbox
@@ -76,11 +71,11 @@ def test_a_client_silent_past_the_lease_is_told_it_cannot_know(
 
 
 def test_an_answer_outlives_the_lease_and_a_stalled_owner_is_not_misled(
-        fast_plc: tuple[str, int]) -> None:
+        fast_controller: FastPlc) -> None:
     """A stalled connection (OpenPLC's accept loop can leave one unserved for seconds) is
     harmless while the mailbox is still the client's, and an answer that arrived before the
     lease ran out still counts afterwards: only a mailbox taken over is undecidable."""
-    with PlcClient(*fast_plc) as modbus:
+    with PlcClient(*fast_controller.address) as modbus:
         a = ArmControllerClient(modbus)
         a.hello()
         k = a.mailbox

@@ -13,7 +13,7 @@ import io
 import re
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,8 +24,7 @@ from armbench.demo import serve_controller
 from armbench.plant.imu_chips import Gy87Board
 from armbench.plant.pca9685 import PCA9685
 from armbench.registermap import controller_constants, controller_map
-from armbench.softplc.image import ProcessImage
-from psm_script import PSM_PATH, load_psm_script
+from psm_script import PSM_PATH, ImageVars, SimBus, load_psm_script
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "raspberry-pi.md"
@@ -132,59 +131,18 @@ def test_doc_openplc_facts_are_in_its_source() -> None:
 
 
 @dataclass
-class ModelBus:
-    """smbus2's block write, served by the PCA9685 model."""
+class PsmThreadLoop:
+    """A PSM main loop (one step, a 5 ms sleep) in a thread, as the runtime runs it beside the
+    PLC; ``step`` is the driver's poll or the IMU reader's."""
 
-    chip: PCA9685
-
-    def write_i2c_block_data(self, i2c_addr: int, register: int, data: list[int]) -> None:
-        self.chip.write(i2c_addr, register, bytes(data))
-
-
-@dataclass
-class ImageVars:
-    """OpenPLC's psm.get_var/set_var over the soft PLC's process image (the runtime's
-    buffers), under the scan lock."""
-
-    image: ProcessImage
-    lock: threading.Lock
-
-    def _slot(self, name: str) -> tuple[str, int]:
-        m = re.fullmatch(r"([IQ])([XW])(\d+)(?:\.(\d))?", name)
-        assert m, name
-        kind = m.group(1).lower() + m.group(2).lower()
-        index = int(m.group(3)) if m.group(2) == "W" else 8 * int(m.group(3)) + int(m.group(4))
-        return kind, index
-
-    def get_var(self, name: str) -> object:
-        kind, index = self._slot(name)
-        with self.lock:
-            value = int(getattr(self.image, kind)[index])
-        return bool(value) if kind.endswith("x") else value
-
-    def set_var(self, name: str, value: object) -> object:
-        kind, index = self._slot(name)
-        # a list fills consecutive words in one step, as pymodbus' setValues does
-        values = value if isinstance(value, list) else [value]
-        with self.lock:
-            for i, v in enumerate(values):
-                getattr(self.image, kind)[index + i] = int(bool(v)) if kind.endswith("x") \
-                    else int(v)
-        return None
-
-
-@dataclass
-class PsmLoop:
-    """The PSM's main loop (poll, sleep) in a thread, as the runtime runs it beside the PLC."""
-
-    driver: object
+    step: Callable[[], None]
     stop: threading.Event = field(default_factory=threading.Event)
     errors: list[BaseException] = field(default_factory=list)
 
     def run(self) -> None:
         try:
             while not self.stop.is_set():
-                self.driver.poll()  # type: ignore[attr-defined]
+                self.step()
                 self.stop.wait(0.005)
         except BaseException as exc:  # a test must see a crash of the loop
             self.errors.append(exc)
@@ -196,9 +154,9 @@ def pi_rehearsal() -> Iterator[tuple[str, int, PCA9685, ImageVars]]:
     chip = PCA9685(address=psm.PCA9685_ADDRESS)
     with serve_controller() as running:
         plc_vars = ImageVars(running.plc.image, running.plc.lock)
-        driver = psm.PCA9685Driver(bus=ModelBus(chip), plc=plc_vars, sleep=chip.advance,
+        driver = psm.PCA9685Driver(bus=SimBus(chip), plc=plc_vars, sleep=chip.advance,
                                    log=lambda _msg: None)
-        loop = PsmLoop(driver)
+        loop = PsmThreadLoop(driver.poll)
         thread = threading.Thread(target=loop.run, daemon=True)
         thread.start()
         try:
@@ -263,25 +221,6 @@ def test_first_power_up_and_the_pwm_check_in_the_bench() -> None:
             assert [chip.pulse_width_us(ch) for ch in range(3)] == [0.0, 0.0, 0.0]
 
 
-@dataclass
-class ImuLoop:
-    """The PSM's IMU reader in a thread, the GY-87 board resting flat (gravity up, a field)."""
-
-    reader: object
-    board: Gy87Board
-    stop: threading.Event = field(default_factory=threading.Event)
-    errors: list[BaseException] = field(default_factory=list)
-
-    def run(self) -> None:
-        try:
-            while not self.stop.is_set():
-                self.board.load([3, -2, 1], [120, -80, 16384], [300, -40, -520])
-                self.reader.poll(time.monotonic())  # type: ignore[attr-defined]
-                self.stop.wait(0.005)
-        except BaseException as exc:  # a test must see a crash of the loop
-            self.errors.append(exc)
-
-
 def test_imu_step_in_the_bench() -> None:
     from armbench.controller_client import ArmControllerClient
     from armbench.softplc.modbus_client import PlcClient
@@ -291,7 +230,14 @@ def test_imu_step_in_the_bench() -> None:
     with serve_controller() as running:
         plc_vars = ImageVars(running.plc.image, running.plc.lock)
         board = Gy87Board()
-        loop = ImuLoop(psm.ImuReader(bus=board, plc=plc_vars, log=logs.append), board)
+        reader = psm.ImuReader(bus=board, plc=plc_vars, log=logs.append)
+
+        def imu_step() -> None:
+            # the GY-87 board resting flat: gravity up, a field
+            board.load([3, -2, 1], [120, -80, 16384], [300, -40, -520])
+            reader.poll(time.monotonic())
+
+        loop = PsmThreadLoop(imu_step)
         thread = threading.Thread(target=loop.run, daemon=True)
         thread.start()
         try:

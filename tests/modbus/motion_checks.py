@@ -1,14 +1,21 @@
 """Checks shared by the motion suites (tests/modbus/test_motion_*.py): the slew guarantee
 of the output stage over a recorded path, restated from the contract (MOTION-CONTRACT.md,
-st/ServoSlew.st's header) and checked on the PLC's own samples, never on our model of it."""
+st/ServoSlew.st's header) and checked on the PLC's own samples, never on our model of it;
+and the joint-angle distance the IK suites (test_lut.py, test_sweep.py) compare with."""
 
 from __future__ import annotations
 
 from armbench.controller_client import MotionRecording
+from armbench.plant import arm
 
 DT = 0.01  # s, the controller's TASK interval (ScanPeriodS in Controller.st)
 # float32 angles near 100 deg are 8e-6 deg apart; a few of them per step
 TOL_DEG = 1e-4
+
+
+def angle_diff(a: float, b: float) -> float:
+    """|a - b| in deg, the short way round the circle (0..180)."""
+    return abs(arm.wrap180(a - b))
 
 
 def worst_slew(rec: MotionRecording) -> tuple[float, float]:

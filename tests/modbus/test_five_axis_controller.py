@@ -12,7 +12,6 @@ reference, so each command has a known reachable answer.
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -39,6 +38,7 @@ from armbench.controller_client import (
     Calibration,
 )
 from armbench.plant import arm
+from five_axis_ref import fk5, pitch_from_joints
 
 GEOM = arm.DEFAULT_GEOMETRY  # the controller's ArmGeometry (library defaults)
 TOOL_MM = 60.0  # FiveAxisGeometry.ToolMm default: the controller's tool (5-AXIS header)
@@ -56,38 +56,9 @@ POSES = [
 ]
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
-
-
-def _ry(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.0]])
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-
-
-def _tr(x: float, y: float, z: float) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
-
-
 def fk(joints: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Reference FK: (flange frame, tool frame), 4x4, mm."""
-    b, s, e, wp, wr = (math.radians(j) for j in joints)
-    flange = (_rz(b) @ _tr(0.0, 0.0, GEOM.a1) @ _tr(GEOM.a2, 0.0, 0.0) @ _ry(-s)
-              @ _tr(GEOM.a3, 0.0, 0.0) @ _ry(math.pi - e) @ _tr(GEOM.a4, 0.0, 0.0))
-    tool = flange @ _ry(-wp) @ _rx(wr) @ _tr(TOOL_MM, 0.0, 0.0)
-    return flange, tool
-
-
-def tool_pitch_deg(joints: tuple[float, ...]) -> float:
-    return joints[1] + joints[2] - 180.0 + joints[3]
+    """Reference FK (tests/five_axis_ref.py): (flange frame, tool frame), 4x4, mm."""
+    return fk5(joints, GEOM, TOOL_MM)
 
 
 def reached(plc: ArmControllerClient) -> tuple[float, float, float, float, float]:
@@ -134,7 +105,7 @@ def test_move_tool_angles_reaches_pose(plc: ArmControllerClient, flange_fixed: b
         f_cmd, t_cmd = fk(q)
         target = f_cmd[:3, 3] if flange_fixed else t_cmd[:3, 3]
         st = plc.move_tool_angles((float(target[0]), float(target[1]), float(target[2])),
-                                  tool_pitch_deg(q), q[4], flange_fixed=flange_fixed,
+                                  pitch_from_joints(q), q[4], flange_fixed=flange_fixed,
                                   wait=True)
         assert st.error_id == ERR_OK, q
         got = check_pose(plc, t_cmd[:3, 3], t_cmd[:3, :3],
@@ -162,7 +133,7 @@ def test_three_joint_move_leaves_the_wrist(plc: ArmControllerClient) -> None:
     q = POSES[1]
     _, t_cmd = fk(q)
     p = t_cmd[:3, 3]
-    assert plc.move_tool_angles((float(p[0]), float(p[1]), float(p[2])), tool_pitch_deg(q),
+    assert plc.move_tool_angles((float(p[0]), float(p[1]), float(p[2])), pitch_from_joints(q),
                                 q[4], wait=True).error_id == ERR_OK
     wrist_before = plc.wrist().out_deg
     st = plc.move_xyz(150.0, 40.0, 120.0, wait=True)
@@ -198,7 +169,7 @@ def test_bad_input_is_rejected_and_nothing_moves(plc: ArmControllerClient) -> No
     q = POSES[0]
     f_cmd, t_cmd = fk(q)
     tip = tuple(float(c) for c in t_cmd[:3, 3])
-    assert plc.move_tool_angles(tip, tool_pitch_deg(q), q[4], wait=True).error_id == ERR_OK
+    assert plc.move_tool_angles(tip, pitch_from_joints(q), q[4], wait=True).error_id == ERR_OK
     before = _snapshot(plc)
     direction = t_cmd[:3, 0]
     side = np.cross(direction, [0.0, 0.0, 1.0])  # the arm plane's normal direction
@@ -218,8 +189,8 @@ def test_bad_input_is_rejected_and_nothing_moves(plc: ArmControllerClient) -> No
                                         180.0, 0.0), ERR_FLANGE_UNREACHABLE),
         (CMD_MOVE_TOOL_ANGLES, (0, 0), (*tip, 0.0, 400.0), ERR_UNREACHABLE),
         # a wrist roll beyond the roll servo's +/-60 deg travel
-        (CMD_MOVE_TOOL_ANGLES, (0, 0), (*tip, tool_pitch_deg(q), 80.0), ERR_JOINT_LIMIT),
-        (CMD_MOVE_TOOL_ANGLES, (4, 0), (*tip, tool_pitch_deg(q), q[4]), ERR_BAD_PARAMETER),
+        (CMD_MOVE_TOOL_ANGLES, (0, 0), (*tip, pitch_from_joints(q), 80.0), ERR_JOINT_LIMIT),
+        (CMD_MOVE_TOOL_ANGLES, (4, 0), (*tip, pitch_from_joints(q), q[4]), ERR_BAD_PARAMETER),
         (CMD_MOVE_TOOL_VECTOR, (0, 36001), (*tip, *direction), ERR_BAD_PARAMETER),
     ]
     for code, ints, args, expect in cases:
@@ -247,7 +218,7 @@ def test_wrist_calibration(plc: ArmControllerClient) -> None:
         q = (0.0, 80.0, 100.0, 0.0, 10.0)
         _, t_cmd = fk(q)
         p = t_cmd[:3, 3]
-        st = plc.move_tool_angles((float(p[0]), float(p[1]), float(p[2])), tool_pitch_deg(q),
+        st = plc.move_tool_angles((float(p[0]), float(p[1]), float(p[2])), pitch_from_joints(q),
                                   q[4], wait=True)
         assert st.error_id == ERR_OK
         assert plc.wrist().pulses_us[1] == pytest.approx(1500.0, abs=1e-3)

@@ -20,6 +20,7 @@ import struct
 import time
 
 import pytest
+from motion_checks import angle_diff
 
 from armbench.controller_client import (
     CMD_INIT_PWM,
@@ -51,10 +52,6 @@ def position_bound(p_mm: tuple[float, float, float]) -> float:
     radius = math.hypot(p_mm[0], p_mm[1])
     shoulder = arm.shoulder_distance(*p_mm)
     return math.radians(ANGLE_BOUND_DEG) * (radius + shoulder + GEOM.a4)
-
-
-def angle_diff(a: float, b: float) -> float:
-    return abs(arm.wrap180(a - b))
 
 
 def workspace_targets(n: int) -> list[tuple[int, int, int]]:

@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from motion_checks import angle_diff
 
 from armbench.controller_client import ArmControllerClient
 from armbench.plant import arm
@@ -40,10 +41,6 @@ def sweep_targets(n: int = SWEEP_POINTS) -> np.ndarray:
     alpha = np.array([1.0 / phi, 1.0 / phi**2, 1.0 / phi**3])
     k = np.arange(1, n + 1)[:, None]
     return LOW + (HIGH - LOW) * np.mod(0.5 + k * alpha, 1.0)
-
-
-def angle_diff(a: float, b: float) -> float:
-    return abs(arm.wrap180(a - b))
 
 
 def test_the_sweep_covers_reachable_targets_only() -> None:

@@ -45,6 +45,7 @@ from armbench.controller_client import (
 from armbench.plant import arm
 from armbench.registermap import controller_map
 from armbench.softplc.modbus_client import PlcClient
+from five_axis_ref import fk5, pitch_from_joints, tool_pitch
 
 G = arm.DEFAULT_GEOMETRY
 TOOL_MM = 60.0  # FiveAxisGeometry.ToolMm default (Controller.st 5-AXIS)
@@ -55,32 +56,10 @@ F_UPDATE_HZ = 25e6 / (4096 * 122)  # PCA9685 at prescale 121 (datasheet equation
 Q_START = (10.0, 80.0, 100.0, -20.0, 10.0)
 
 
-def _rot(axis: int, a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    m = np.eye(4)
-    i, j = [(1, 2), (0, 2), (0, 1)][axis]
-    m[i, i] = m[j, j] = c
-    m[i, j], m[j, i] = (s, -s) if axis == 1 else (-s, s)
-    return m
-
-
-def _tx(x: float, z: float = 0.0) -> np.ndarray:
-    m = np.eye(4)
-    m[0, 3], m[2, 3] = x, z
-    return m
-
-
 def fk(q: tuple[float, ...] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(flange point, tool frame 4x4), float64."""
-    b, s, e, wp, wr = (math.radians(v) for v in q[:5])
-    flange = (_rot(2, b) @ _tx(G.a2, G.a1) @ _rot(1, -s) @ _tx(G.a3) @ _rot(1, math.pi - e)
-              @ _tx(G.a4))
-    return flange[:3, 3], flange @ _rot(1, -wp) @ _rot(0, wr) @ _tx(TOOL_MM)
-
-
-def tool_pitch(q: tuple[float, ...] | np.ndarray) -> float:
-    x = fk(q)[1][:3, 0]
-    return math.degrees(math.atan2(x[2], math.hypot(x[0], x[1])))
+    """(flange point, tool frame 4x4), float64 (tests/five_axis_ref.py)."""
+    flange, tool = fk5(q, G, TOOL_MM)
+    return flange[:3, 3], tool
 
 
 def _real(words: list[int], k: int) -> float:
@@ -203,7 +182,7 @@ def go_to_start(plc: ArmControllerClient, q: tuple[float, ...] = Q_START) -> np.
     """A MoveToolAngles to the pose of joints ``q``; returns its tool tip (reference FK)."""
     _, tool = fk(q)
     tip = tool[:3, 3]
-    pitch = q[1] + q[2] - 180.0 + q[3]
+    pitch = pitch_from_joints(q)
     st = plc.move_tool_angles((float(tip[0]), float(tip[1]), float(tip[2])), pitch, q[4],
                               wait=True)
     assert st.error_id == ERR_OK

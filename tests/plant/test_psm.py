@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
 
 from armbench.plant.pca9685 import PCA9685, I2CNackError
-from psm_script import load_psm_script
+from psm_script import SimBus, load_psm_script
 
 OSC = 25_000_000.0
 ADDR = 0x40
@@ -19,23 +18,6 @@ ADDR = 0x40
 
 
 psm_mod = load_psm_script("arm_io_psm")
-
-
-@dataclass
-class SimBus:
-    """smbus2-shaped adapter that forwards block writes to the PCA9685 model."""
-
-    chip: PCA9685
-    log: list[tuple[int, int, bytes]] = field(default_factory=list)
-    fail_next: int = 0
-
-    def write_i2c_block_data(self, i2c_addr: int, register: int, data: Sequence[int]) -> None:
-        assert len(data) <= 32, "SMBus block writes carry at most 32 bytes"
-        if self.fail_next:
-            self.fail_next -= 1
-            raise OSError(121, "Remote I/O error")
-        self.log.append((i2c_addr, register, bytes(data)))
-        self.chip.write(i2c_addr, register, bytes(data))
 
 
 @dataclass

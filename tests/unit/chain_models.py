@@ -1,5 +1,7 @@
 """Helpers for the kinematic-chain suites: Robotics Toolbox robots as KinematicChain dicts
-(st/KinematicsChain.st), and the reference models the tests compare with.
+(st/KinematicsChain.st), and the reference models the tests compare with (the toolbox's
+Puma 560, document 001's 4-axis arm as a modified-DH DHRobot). The toolbox is imported inside
+the functions that build robots, so that a suite can skip cleanly where it is absent.
 
 The ST library works in mm and deg; the toolbox's Puma 560 is in metres and radians, so
 lengths are scaled by 1000 on the way in and the toolbox's linear results on the way out.
@@ -8,6 +10,7 @@ lengths are scaled by 1000 on the way in and the toolbox's linear results on the
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -78,3 +81,49 @@ def pose_st(T: NDArray[np.float64], scale: float) -> list[list[float]]:
 def rotation_angle_deg(Ra: NDArray[np.float64], Rb: NDArray[np.float64]) -> float:
     c = (np.trace(Ra @ Rb.T) - 1.0) / 2.0
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+
+# document 001's 4-axis arm (st/Kinematics4Axis.st's Arm4AxisGeometry), mm
+FOUR_AXIS_GEO = {"BaseHeightMm": 100.0, "ShoulderOffsetMm": 20.0, "UpperArmMm": 120.0,
+                 "ForearmMm": 130.0, "WristLinkMm": 40.0, "ToolDropMm": 15.0}
+
+
+def four_axis_rtb(g: dict[str, float] = FOUR_AXIS_GEO) -> Any:
+    """Document 001's modified-DH table as a toolbox DHRobot (float64, mm), the horizontal
+    last link and the tool drop as its tool transform."""
+    import roboticstoolbox as rtb
+    import spatialmath as sm
+
+    return rtb.DHRobot([
+        rtb.RevoluteMDH(d=g["BaseHeightMm"]),
+        rtb.RevoluteMDH(a=g["ShoulderOffsetMm"], alpha=math.pi / 2),
+        rtb.RevoluteMDH(a=g["UpperArmMm"]),
+        rtb.RevoluteMDH(a=g["ForearmMm"]),
+    ], tool=sm.SE3(g["WristLinkMm"], -g["ToolDropMm"], 0.0))
+
+
+def puma560() -> Any:
+    """The toolbox's Puma 560 (metres, radians)."""
+    import roboticstoolbox as rtb
+
+    return rtb.models.DH.Puma560()
+
+
+@dataclass
+class PumaCase:
+    """One IK problem on the Puma 560, in the ST's units: a target pose reached at joints
+    ``qt`` (rad) and a seed ``seed_offset`` rad away from them in every joint."""
+
+    robot: Any
+    chain: dict[str, Any]
+    qt: NDArray[np.float64]
+    target: list[list[float]]
+    seed: list[float]
+
+
+def puma_case(seed_offset: float) -> PumaCase:
+    robot = puma560()
+    qt = np.array([0.3, 0.5, -0.4, 0.6, 0.7, -0.2])
+    return PumaCase(robot=robot, chain=chain_of(robot, MM_PER_M), qt=qt,
+                    target=pose_st(robot.fkine(qt).A, MM_PER_M),
+                    seed=joints_st(robot, qt + seed_offset, MM_PER_M))

@@ -13,13 +13,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from chain_models import empty_link
+from chain_models import FOUR_AXIS_GEO, empty_link, four_axis_rtb
 
 rtb = pytest.importorskip("roboticstoolbox")
 sm = pytest.importorskip("spatialmath")
 
-GEO = {"BaseHeightMm": 100.0, "ShoulderOffsetMm": 20.0, "UpperArmMm": 120.0,
-       "ForearmMm": 130.0, "WristLinkMm": 40.0, "ToolDropMm": 15.0}
+GEO = FOUR_AXIS_GEO
 N_ROUND_TRIP = 10_000
 ROUND_TRIP_TOL_MM = 0.01
 FK_TOL_MM = 1e-3
@@ -27,17 +26,8 @@ FK_TOL_MM = 1e-3
 UNREACHABLE, SINGULAR, NOT_FINITE, BAD_GEOMETRY = 1, 2, 3, 4
 
 
-def robot(g: dict[str, float] = GEO) -> Any:
-    return rtb.DHRobot([
-        rtb.RevoluteMDH(d=g["BaseHeightMm"]),
-        rtb.RevoluteMDH(a=g["ShoulderOffsetMm"], alpha=math.pi / 2),
-        rtb.RevoluteMDH(a=g["UpperArmMm"]),
-        rtb.RevoluteMDH(a=g["ForearmMm"]),
-    ], tool=sm.SE3(g["WristLinkMm"], -g["ToolDropMm"], 0.0))
-
-
 def test_fk_and_jacobian_match_toolbox_mdh_model(st_module: Any) -> None:
-    r = robot()
+    r = four_axis_rtb()
     rng = np.random.default_rng(1)
     worst = 0.0
     chain = {"Links": [empty_link() for _ in range(6)]}
@@ -65,7 +55,7 @@ def test_fk_and_jacobian_match_toolbox_mdh_model(st_module: Any) -> None:
 def reachable_points(rng: np.random.Generator, count: int) -> np.ndarray:
     """Tool points of random joint angles with the last link horizontal (so reachable),
     computed by the toolbox; a tenth of them within 0.01 mm of full stretch."""
-    r = robot()
+    r = four_axis_rtb()
     q = np.zeros((count, 4))
     q[:, 0] = rng.uniform(-math.pi, math.pi, count)
     q[:, 1] = rng.uniform(-math.pi, math.pi, count)
@@ -79,7 +69,7 @@ def reachable_points(rng: np.random.Generator, count: int) -> np.ndarray:
 
 @pytest.mark.parametrize("elbow_up", [True, False], ids=["elbow-up", "elbow-down"])
 def test_round_trip_10000_points(st_module: Any, elbow_up: bool) -> None:
-    r = robot()
+    r = four_axis_rtb()
     rng = np.random.default_rng(2 if elbow_up else 3)
     pts = reachable_points(rng, N_ROUND_TRIP)
     answers = np.zeros((N_ROUND_TRIP, 4))

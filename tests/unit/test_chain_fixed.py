@@ -54,15 +54,7 @@ def run_line(st_module: Any, damping_um: int = 0) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ integer only
-def test_no_floating_point_tokens() -> None:
-    text = re.sub(r"\(\*.*?\*\)", " ", SOURCE.read_text(encoding="utf-8"), flags=re.S)
-    tokens = re.findall(r"[A-Za-z_][A-Za-z0-9_]*|\d+\.\d+", text)
-    bad = [t for t in tokens if re.fullmatch(r"L?REAL|\w+_TO_L?REAL|L?REAL_TO_\w+|\d+\.\d+",
-                                             t.upper())
-           or t.upper() in {"SQRT", "SIN", "COS", "ATAN", "ACOS", "ASIN", "EXPT", "LN", "EXP"}]
-    assert not bad, f"floating point in {SOURCE.name}: {sorted(set(bad))}"
-
-
+# no floating-point token: tests/unit/test_kinematics_fixed.py::test_no_floating_point_tokens
 def test_no_division_operator() -> None:
     """Document 003: shifts instead of division (MOD too would be a division)."""
     text = re.sub(r"\(\*.*?\*\)", " ", SOURCE.read_text(encoding="utf-8"), flags=re.S)

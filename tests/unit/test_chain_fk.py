@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from chain_models import MM_PER_M, chain_of, empty_link, joints_st
+from chain_models import MM_PER_M, chain_of, empty_link, joints_st, puma560
 
 rtb = pytest.importorskip("roboticstoolbox")
 sm = pytest.importorskip("spatialmath")
@@ -23,10 +23,6 @@ FK_TOL_MM = 1e-3        # position, mm
 ROT_TOL = 1e-5          # rotation matrix entries
 JAC_TOL = 1e-5          # jacob0 in the toolbox's units (m/rad and rad/rad)
 N_CONFIGS = 200
-
-
-def puma() -> Any:
-    return rtb.models.DH.Puma560()
 
 
 def to_toolbox_units(robot: Any, J: np.ndarray) -> np.ndarray:
@@ -81,7 +77,7 @@ def test_link_transform_matches_toolbox_link_A(st_module: Any) -> None:
 @pytest.mark.parametrize("name", ["puma560", "mixed-DH", "mixed-MDH"])
 def test_fk_frames_and_jacobian_match_toolbox(st_module: Any, name: str) -> None:
     rng = np.random.default_rng(5)
-    robot = {"puma560": puma(), "mixed-DH": random_mixed_robot(rng, False),
+    robot = {"puma560": puma560(), "mixed-DH": random_mixed_robot(rng, False),
              "mixed-MDH": random_mixed_robot(rng, True)}[name]
     tool = (0.0, 0.0, 0.0)
     if name != "puma560":
@@ -216,7 +212,7 @@ def test_pose_error_rotation_vector(st_module: Any, angle_deg: float) -> None:
 
 
 def test_bad_tables_give_identity_never_nan(st_module: Any) -> None:
-    robot = puma()
+    robot = puma560()
     chain = chain_of(robot, MM_PER_M)
     js = joints_st(robot, np.zeros(6), MM_PER_M)
     for patch in ({"Count": 0}, {"Count": 7}, {"ToolX": math.nan}):

@@ -16,12 +16,15 @@ from typing import Any
 import numpy as np
 import pytest
 from chain_models import (
+    FOUR_AXIS_GEO,
     MM_PER_M,
     chain_of,
     empty_link,
+    four_axis_rtb,
     joints_rtb,
     joints_st,
     pose_st,
+    puma_case,
     rotation_angle_deg,
 )
 
@@ -46,17 +49,7 @@ def solve(ik: Any, **inputs: Any) -> Any:
     return ik(Execute=True, **inputs)
 
 
-def four_axis_rtb(g: dict[str, float]) -> Any:
-    return rtb.DHRobot([
-        rtb.RevoluteMDH(d=g["BaseHeightMm"]),
-        rtb.RevoluteMDH(a=g["ShoulderOffsetMm"], alpha=math.pi / 2),
-        rtb.RevoluteMDH(a=g["UpperArmMm"]),
-        rtb.RevoluteMDH(a=g["ForearmMm"]),
-    ], tool=sm.SE3(g["WristLinkMm"], -g["ToolDropMm"], 0.0))
-
-
-GEO4 = {"BaseHeightMm": 100.0, "ShoulderOffsetMm": 20.0, "UpperArmMm": 120.0,
-        "ForearmMm": 130.0, "WristLinkMm": 40.0, "ToolDropMm": 15.0}
+GEO4 = FOUR_AXIS_GEO
 
 
 @pytest.mark.parametrize("spread", [1.0, math.pi], ids=["near-seed", "any-seed"])
@@ -222,11 +215,8 @@ def test_resolved_rate_step_matches_float64_dls(st_module: Any) -> None:
 
 
 def test_multi_scan_protocol(st_module: Any) -> None:
-    robot = rtb.models.DH.Puma560()
-    chain = chain_of(robot, MM_PER_M)
-    qt = np.array([0.3, 0.5, -0.4, 0.6, 0.7, -0.2])
-    target = pose_st(robot.fkine(qt).A, MM_PER_M)
-    seed = joints_st(robot, qt + 0.8, MM_PER_M)
+    case = puma_case(0.8)
+    chain, target, seed = case.chain, case.target, case.seed
     ik = st_module.new_fb("InverseKinematik_Chain")
     ik(Execute=True, Chain=chain, Target=target, Seed=seed, ItersPerScan=1, MaxIters=100)
     scans = 1
@@ -266,11 +256,8 @@ def _assert_kept(ik: Any, answer: list[float]) -> None:
 
 
 def test_bad_input_gives_error_and_keeps_last_answer(st_module: Any) -> None:
-    robot = rtb.models.DH.Puma560()
-    chain = chain_of(robot, MM_PER_M)
-    qt = np.array([0.3, 0.5, -0.4, 0.6, 0.7, -0.2])
-    target = pose_st(robot.fkine(qt).A, MM_PER_M)
-    seed = joints_st(robot, qt + 0.3, MM_PER_M)
+    case = puma_case(0.3)
+    chain, target, seed = case.chain, case.target, case.seed
     ik = st_module.new_fb("InverseKinematik_Chain")
     good = {"Chain": chain, "Target": target, "Seed": seed, "Lambda": 0.01,
             "ItersPerScan": 1000, "MaxIters": 1000, "TolMm": 1e-3, "TolDeg": 1e-3,

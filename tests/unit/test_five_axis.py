@@ -14,8 +14,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+import five_axis_ref
+from armbench.plant.arm import ArmGeometry
+
 A1, A2, A3, A4, TOOL = 100.0, 20.0, 120.0, 130.0, 60.0
 GEO = {"Arm": {"A1": A1, "A2": A2, "A3": A3, "A4": A4}, "ToolMm": TOOL}
+LENGTHS = ArmGeometry(A1, A2, A3, A4)
 N_ROUND_TRIP = 10_000
 NO_ERROR, UNREACHABLE, SINGULAR, NOT_FINITE, BAD_GEOMETRY = 0, 1, 2, 3, 4
 TOOL_OUT_OF_PLANE, TOOL_VECTOR_ZERO, FLANGE_UNREACHABLE = 35, 36, 37
@@ -24,32 +28,10 @@ ANGLE_TOL_DEG = 2e-3
 
 
 # ------------------------------------------------------------------ references
-def _rot(axis: str, a: np.ndarray) -> np.ndarray:
-    """Batch of elementary homogeneous rotations (N, 4, 4), angles in radians."""
-    c, s = np.cos(a), np.sin(a)
-    m = np.zeros((len(a), 4, 4))
-    m[:, 3, 3] = 1.0
-    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
-    k = 3 - i - j
-    m[:, k, k] = 1.0
-    m[:, i, i], m[:, i, j], m[:, j, i], m[:, j, j] = c, -s, s, c
-    return m
-
-
-def _trans(x: float, y: float, z: float, n: int) -> np.ndarray:
-    m = np.tile(np.eye(4), (n, 1, 1))
-    m[:, :3, 3] = (x, y, z)
-    return m
-
-
 def fk_elementary(q_deg: np.ndarray) -> np.ndarray:
-    """Tool pose (N, 4, 4): Rz(base) T(A2, 0, A1) Ry(-shoulder) T(A3) Ry(-(elbow - 180))
-    T(A4) Ry(-wrist) Rx(roll) T(tool); columns of the rotation = tool x, y, z."""
-    q = np.radians(np.atleast_2d(q_deg))
-    n = len(q)
-    t = _rot("z", q[:, 0]) @ _trans(A2, 0, A1, n) @ _rot("y", -q[:, 1]) @ _trans(A3, 0, 0, n)
-    t = t @ _rot("y", -(q[:, 2] - math.pi)) @ _trans(A4, 0, 0, n)
-    return t @ _rot("y", -q[:, 3]) @ _rot("x", q[:, 4]) @ _trans(TOOL, 0, 0, n)
+    """Tool poses (N, 4, 4) of the shared reference (tests/five_axis_ref.py) on this file's
+    geometry; columns of the rotation = tool x, y, z."""
+    return five_axis_ref.fk_elementary(q_deg, LENGTHS, TOOL)
 
 
 @pytest.fixture(scope="module")

@@ -57,7 +57,10 @@ def _code_tokens(path: Path) -> list[str]:
     return re.findall(r"[A-Za-z_][A-Za-z0-9_]*|\d+\.\d+|\d+[eE]", text)
 
 
-@pytest.mark.parametrize("path", FIXED_FILES, ids=lambda p: p.name)
+# KinematicsChainFixed.st (document 003's integer resolved-rate step) is held to the same
+# rule; it is not in FIXED_FILES, whose sources this module compiles
+@pytest.mark.parametrize("path", [*FIXED_FILES, ST / "KinematicsChainFixed.st"],
+                         ids=lambda p: p.name)
 def test_no_floating_point_tokens(path: Path) -> None:
     tokens = _code_tokens(path)
     float_functions = {"SQRT", "LN", "LOG", "EXP", "EXPT", "SIN", "COS", "TAN", "ASIN", "ACOS",

@@ -25,6 +25,7 @@ from motion_support import (
 )
 
 from armbench.plant import arm
+from five_axis_ref import fk5, tool_pitch
 
 G = arm.DEFAULT_GEOMETRY
 TOOL_MM = 60.0
@@ -36,37 +37,14 @@ TIP_TOL_MM = 0.02
 Q0 = [15.0, 80.0, 100.0, -20.0, 10.0]  # deg, inside +/-170 everywhere
 
 
-def _rot(axis: int, a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    m = np.eye(4)
-    i, j = [(1, 2), (0, 2), (0, 1)][axis]
-    m[i, i], m[j, j] = c, c
-    m[i, j], m[j, i] = (-s, s) if axis != 1 else (s, -s)
-    return m
-
-
-def _tr(x: float, z: float = 0.0) -> np.ndarray:
-    m = np.eye(4)
-    m[0, 3], m[2, 3] = x, z
-    return m
-
-
 def fk(q: list[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(flange point, tool frame 4x4), float64."""
-    b, s, e, wp, wr = (math.radians(v) for v in q[:5])
-    flange = (_rot(2, b) @ _tr(G.a2, G.a1) @ _rot(1, -s) @ _tr(G.a3)
-              @ _rot(1, math.pi - e) @ _tr(G.a4))
-    tool = flange @ _rot(1, -wp) @ _rot(0, wr) @ _tr(TOOL_MM)
+    """(flange point, tool frame 4x4), float64 (tests/five_axis_ref.py)."""
+    flange, tool = fk5(q, G, TOOL_MM)
     return flange[:3, 3], tool
 
 
 def tip(q: list[float] | np.ndarray) -> np.ndarray:
     return fk(q)[1][:3, 3]
-
-
-def tool_pitch(q: list[float] | np.ndarray) -> float:
-    x = fk(q)[1][:3, 0]
-    return math.degrees(math.atan2(x[2], math.hypot(x[0], x[1])))
 
 
 def start(q: list[float] = Q0, **limits: float) -> GroupSim:

@@ -6,7 +6,8 @@ its gyro has a 0.56 deg/s bias (|(0.4, -0.3, 0.25)|) plus a random walk, so inte
 alone must drift by tens of degrees a minute, while the filters that see gravity and the field
 stay within a degree. Madgwick's IMU form (no magnetometer) keeps the tilt but not the
 heading: its yaw drifts like the gyro's. The figures are printed (run with -s) and drawn by
-``python -m armbench.plots.orientation`` for docs/orientation.md.
+``python -m armbench.plots.orientation`` for docs/orientation.md (checked in
+tests/docs/test_figure_scripts.py).
 """
 
 from __future__ import annotations
@@ -71,16 +72,3 @@ def test_gyro_drifts_and_the_filters_do_not(runs: dict[str, Any]) -> None:
     imu = runs["madgwick_imu"]
     assert window(tilt_error_deg(imu.quats, truth), t, 50, 61) < 1.0  # gravity fixes tilt
     assert window(errors["madgwick_imu"], t, 50, 61) > 5.0  # ... but not the heading
-
-
-def test_figure_script_writes_the_figures_the_chapter_shows(tmp_path: Any) -> None:
-    from pathlib import Path
-
-    from armbench.plots import orientation
-
-    assert orientation.main(["--out", str(tmp_path)]) == 0
-    chapter = (Path(__file__).resolve().parents[2] / "docs" / "orientation.md").read_text()
-    for name in ("orientation-error.png", "orientation-follower.png"):
-        png = tmp_path / name
-        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
-        assert f"figures/{name}" in chapter, name

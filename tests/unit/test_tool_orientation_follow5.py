@@ -21,6 +21,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from armbench.plant import arm
+from five_axis_ref import fk5
 
 G = arm.DEFAULT_GEOMETRY
 TOOL_MM = 60.0
@@ -53,20 +54,10 @@ def _rx(a: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def _h(r: np.ndarray, p: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, :3] = r
-    m[:3, 3] = p
-    return m
-
-
 def fk(q: list[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(flange point, tool tip, tool frame 3x3), float64, joints in deg."""
-    b, s, e, wp, wr = (math.radians(float(v)) for v in q[:5])
-    flange = (_h(_rz(b)) @ _h(np.eye(3), (G.a2, 0.0, G.a1)) @ _h(_ry(-s))
-              @ _h(np.eye(3), (G.a3, 0.0, 0.0)) @ _h(_ry(math.pi - e))
-              @ _h(np.eye(3), (G.a4, 0.0, 0.0)))
-    tool = flange @ _h(_ry(-wp)) @ _h(_rx(wr)) @ _h(np.eye(3), (TOOL_MM, 0.0, 0.0))
+    """(flange point, tool tip, tool frame 3x3), float64, joints in deg
+    (tests/five_axis_ref.py)."""
+    flange, tool = fk5(q, G, TOOL_MM)
     return flange[:3, 3], tool[:3, 3], tool[:3, :3]
 
 
