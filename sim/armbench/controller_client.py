@@ -651,6 +651,11 @@ class ArmControllerClient:
             words += self.plc.read_holding_registers(address + len(words), n)
         return words
 
+    def _read_block(self, b: _Block) -> list[float]:
+        """One result block, decoded; a broken connection is reopened for ``timeout_s``."""
+        return b.decode(self._io(lambda: self._read(b.address, b.length),
+                                 time.monotonic() + self.timeout_s))
+
     def _write(self, address: int, words: list[int]) -> None:
         done = 0
         while done < len(words):
@@ -958,10 +963,7 @@ class ArmControllerClient:
 
     def motion(self) -> MotionSample:
         """The motion registers, one FC3 request (they are contiguous)."""
-        b = self._motion
-        return MotionSample.decode(b.decode(self._io(
-            lambda: self.plc.read_holding_registers(b.address, b.length),
-            time.monotonic() + self.timeout_s)))
+        return MotionSample.decode(self._read_block(self._motion))
 
     def wait_motion(self, ticket: MotionTicket | None = None,
                     timeout_s: float = 30.0) -> MotionOutcome:
@@ -1028,21 +1030,18 @@ class ArmControllerClient:
 
     def five_axis_echo(self) -> FiveAxisEcho:
         """The 5-axis echo block (one read: a consistent snapshot)."""
-        v = self._five.decode(self._io(lambda: self._read(self._five.address, self._five.length),
-                                       time.monotonic() + self.timeout_s))
+        v = self._read_block(self._five)
         return FiveAxisEcho(int(v[0]), int(v[1]), int(v[2]), (v[3], v[4], v[5], v[6], v[7]),
                             (v[8], v[9], v[10]), (v[11], v[12], v[13]), v[14], v[15])
 
     def wrist(self) -> WristSample:
         """The wrist joints' setpoints, servo angles, pulses and limits (one read)."""
-        v = self._wrist.decode(self._io(
-            lambda: self._read(self._wrist.address, self._wrist.length),
-            time.monotonic() + self.timeout_s))
+        v = self._read_block(self._wrist)
         return WristSample((v[0], v[1]), (v[2], v[3]), (v[4], v[5]), (v[6], v[7]), (v[8], v[9]))
 
     def wrist_calibration(self) -> tuple[Calibration, Calibration]:
         """The wrist pitch and roll servos' calibration (SetCalibration joints 3, 4)."""
-        v = self._wrist_cal.decode(self._read(self._wrist_cal.address, self._wrist_cal.length))
+        v = self._read_block(self._wrist_cal)
         n = len(_CAL_SUFFIXES)
         return (Calibration(v[0], int(v[1]), *v[2:n]),
                 Calibration(v[n], int(v[n + 1]), *v[n + 2: 2 * n]))
@@ -1072,16 +1071,12 @@ class ArmControllerClient:
 
     def gripper(self) -> GripperSample:
         """The gripper channel's opening, servo angle, pulse, limits (one read)."""
-        b = self._gripper
-        v = b.decode(self._io(lambda: self._read(b.address, b.length),
-                              time.monotonic() + self.timeout_s))
+        v = self._read_block(self._gripper)
         return GripperSample(v[0], v[1], v[2], v[3], v[4], bool(v[5]))
 
     def gripper_calibration(self) -> Calibration:
         """The gripper servo's calibration (SetCalibration joint ``JOINT_GRIPPER``)."""
-        b = self._gripper_cal
-        v = b.decode(self._io(lambda: self._read(b.address, b.length),
-                              time.monotonic() + self.timeout_s))
+        v = self._read_block(self._gripper_cal)
         return Calibration(v[0], int(v[1]), *v[2:])
 
     # -- SolveBatch --------------------------------------------------------------------------
@@ -1157,7 +1152,7 @@ class ArmControllerClient:
 
     def lut_result(self) -> LutResult:
         """The LUT result block as it is now (one read: a consistent snapshot)."""
-        v = [int(x) for x in self._lut.decode(self._read(self._lut.address, self._lut.length))]
+        v = [int(x) for x in self._read_block(self._lut)]
         return LutResult(v[0], v[1], v[2], (v[3], v[4], v[5]), (v[6], v[7], v[8]),
                          (v[9], v[10], v[11]), v[12])
 
@@ -1215,8 +1210,7 @@ class ArmControllerClient:
     # ----- IMU (issue #11): commands 40..45 and the result block -----
     def imu_state(self) -> ImuState:
         """The IMU result block as it is now (one read: a consistent snapshot)."""
-        return ImuState.decode(self._imu.decode(self._read(self._imu.address,
-                                                           self._imu.length)))
+        return ImuState.decode(self._read_block(self._imu))
 
     def imu_select_filter(self, method: str, gain: float = 0.0) -> int:
         """ImuSelectFilter: ``method`` one of IMU_FILTERS' names, ``gain`` F or beta (0.0 =
@@ -1275,8 +1269,7 @@ class ArmControllerClient:
 
     def follow_state(self) -> FollowState:
         """The FollowImu block (one read: a consistent snapshot)."""
-        return FollowState.decode(self._follow.decode(self._read(self._follow.address,
-                                                                 self._follow.length)))
+        return FollowState.decode(self._read_block(self._follow))
 
 
 @dataclass
