@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from armbench.compiler import compile_files
-from armbench.follow_demo import ScanRow, analyse, arm_frames, demo_trajectory
+from armbench.follow_demo import SCAN_S, TOOL_MM, ScanRow, analyse, arm_frames, demo_trajectory
 from armbench.orientation import quat_dict, run_filter, st_samples
 from armbench.plant.arm import DEFAULT_GEOMETRY
 from armbench.plant.imu import ImuModel, simulate
@@ -32,12 +32,11 @@ ROOT = Path(__file__).resolve().parent.parent
 HEADING_DEG = 10.0
 START_JOINTS = [0.0, 75.0, 95.0, 10.0, 0.0]  # follow_demo's start pose: tool horizontal
 LEAD = 50  # samples the filter runs before the follow starts (0.5 s)
-SCAN_S = 0.01
 
 
 def run(module: object, quats: np.ndarray, record: object, acc: float, scans: int,
         flange_fixed: bool) -> tuple[float, float, float, float, int]:
-    geo = {"Arm": DEFAULT_GEOMETRY.as_st(), "ToolMm": 60.0}
+    geo = {"Arm": DEFAULT_GEOMETRY.as_st(), "ToolMm": TOOL_MM}
     fb = module.new_fb("ToolOrientationFollow5Axis")  # type: ignore[attr-defined]
     slew = module.new_fb("ServoSlewLimiter")  # type: ignore[attr-defined]
     joints = [*START_JOINTS, 0.0]

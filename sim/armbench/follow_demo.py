@@ -307,6 +307,16 @@ def _check(what: str, code: int) -> None:
         raise CommandRejected(what, code)
 
 
+def scans_per_sample(rate_hz: float) -> int:
+    """Scans between two IMU samples at ``rate_hz``: the 10 ms scan writes the samples, so
+    the rate must be 100 Hz divided by a whole number (DemoError otherwise)."""
+    spacing = 1.0 / (rate_hz * SCAN_S) if rate_hz > 0.0 and math.isfinite(rate_hz) else 0.0
+    if not (spacing >= 1.0 and math.isclose(spacing, round(spacing))):
+        raise DemoError(f"the IMU rate must be 100 Hz divided by a whole number (100, 50, "
+                        f"25, ...), got {rate_hz:g} Hz")
+    return round(spacing)
+
+
 def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20.0,
                heading_deg: float = 10.0, flange_fixed: bool = False, seed: int = 5,
                lead_s: float = 0.5, trajectory: HandTrajectory | None = None,
@@ -314,10 +324,7 @@ def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20
     """Start pose, Madgwick MARG filter started at the hand's true orientation, ``lead_s`` of
     samples, then FollowImu for ``duration_s`` while the hand moves; returns the figures.
     ``rate_hz``: the IMU's sample rate, 100 Hz divided by a whole number of scans."""
-    scans_per_sample = round(1.0 / (rate_hz * SCAN_S))
-    if not (scans_per_sample >= 1 and math.isclose(scans_per_sample * rate_hz * SCAN_S, 1.0)):
-        raise DemoError(f"the IMU rate must be 100 Hz divided by a whole number (the 10 ms "
-                        f"scan writes the samples), got {rate_hz} Hz")
+    spacing = scans_per_sample(rate_hz)
     traj = trajectory or demo_trajectory(heading_deg)
     record = simulate(traj, ImuModel(), duration_s=duration_s + lead_s + 0.5, rate_hz=rate_hz,
                       seed=seed)
@@ -328,7 +335,7 @@ def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20
         _check("ImuSetPeriod", c.imu_set_period(record.period_s))
         _check("ImuReset", c.imu_reset(tuple(float(v) for v in record.quat_true[0])))
         lead = int(round(lead_s / record.period_s))
-        rig.play(record, 1, scans_per_sample)
+        rig.play(record, 1, spacing)
         rig.wait_samples(lead)
         rig.start_recording()
         st = c.follow_imu(flange_fixed=flange_fixed, heading_deg=heading_deg)
@@ -379,10 +386,10 @@ def print_report(run: FollowRun, out: TextIO) -> None:
 def imu_rate(text: str) -> float:
     """An IMU rate the 10 ms scan can write: 100 Hz divided by a whole number."""
     value = argtypes.finite(text)
-    spacing = 1.0 / (value * SCAN_S) if value > 0.0 else 0.0
-    if not (spacing >= 1.0 and math.isclose(spacing, round(spacing))):
-        raise argparse.ArgumentTypeError(f"must be 100 Hz divided by a whole number "
-                                         f"(100, 50, 25, ...), got {value:g}")
+    try:
+        scans_per_sample(value)
+    except DemoError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     return value
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from armbench.follow_demo import FollowRun, paced_controller, print_report, run_follow
+from armbench.follow_demo import FollowRun, paced_controller, print_report, run_follow, settled
 from armbench.plots.cli import figure_target
 
 DURATION_S = 20.0
@@ -39,14 +39,14 @@ def follow_figure(path: Path, run: FollowRun) -> Path:
     ax2.legend(loc="upper right", fontsize=8)
     ax3.plot(run.t, run.error_deg, color="C3", lw=1.0, label="tool direction error, deg")
     ax3.plot(run.t, run.drift_mm, color="C2", lw=1.0, label="tip drift, mm")
-    ok = run.t >= 2.0
+    ok = settled(run)
     ax3.set_title(f"after 2 s: error 95 % {np.percentile(run.error_deg[ok], 95):.2f} deg, "
                   f"max {run.error_deg[ok].max():.2f} deg; tip drift max "
                   f"{run.drift_mm.max():.2f} mm", fontsize=9)
     ax3.set_xlabel("time since FollowImu, s")
     ax3.legend(loc="upper right", fontsize=8)
     fig.suptitle("FollowImu: Madgwick MARG -> ToolOrientationFollower (dead band 2 deg, "
-                 "90 deg/s) -> 5-axis IK, tip fixed", fontsize=10)
+                 "90 deg/s, 400 deg/s^2) -> 5-axis IK, tip fixed", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     return path
