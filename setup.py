@@ -1,7 +1,7 @@
 """Build hook: the wheel carries the ST library and the controller program as package data.
 
 st/ and plc_project/ stay the single source in the repository (no second copy in git); this
-copies st/*.st and plc_project/Controller.st into ``armbench/_data/`` of the build, where
+copies st/*.st, plc_project/Controller.st and plc_project/controller/*.st into ``armbench/_data/`` of the build, where
 :mod:`armbench.locate` finds them in an installed package. An editable install maps the
 package to sim/armbench and uses the checkout's own files, so nothing is copied then.
 Everything else is in pyproject.toml.
@@ -17,7 +17,8 @@ from setuptools.command.build_py import build_py
 
 HERE = Path(__file__).resolve().parent
 # (source glob relative to the repository, destination folder relative to armbench/_data)
-BUNDLED = (("st/*.st", "st"), ("plc_project/Controller.st", "plc_project"))
+BUNDLED = (("st/*.st", "st"), ("plc_project/Controller.st", "plc_project"),
+           ("plc_project/controller/*.st", "plc_project/controller"))
 
 
 class BuildPyWithProject(build_py):

@@ -52,7 +52,7 @@ COMMAND_FIELDS = (  # (name, type, comment): the MailboxCommand STRUCT, in regis
     ("Arg4", "REAL", "REAL argument 4"),
     ("Arg5", "REAL", "REAL argument 5"),
     ("Arg6", "REAL", "REAL argument 6"),
-    ("Check", "UDINT", "Seq + Session + Code + Int1 + Int2 mod 2^32"),
+    ("Check", "UDINT", "MailboxCheckWord: 1*Seq + 3*Session + ... + 21*Arg6 mod 2^32"),
 )
 ANSWER_FIELDS = (  # (name, internal MailboxState field, type, comment)
     ("Owner", "Owner", "DINT", "session holding the mailbox, 0 = free"),
@@ -135,7 +135,7 @@ def mailbox_copy_in() -> list[str]:
 
 
 def mailbox_copy_out() -> list[str]:
-    return _rows([f"Mbx{k:02d}{name} := MbxState[{k}].{field};"
+    return _rows([f"Mbx{k:02d}{name} := Mailboxes.States[{k}].{field};"
                   for k in range(1, MAILBOXES + 1) for name, field, _, _ in ANSWER_FIELDS], 2)
 
 

@@ -68,7 +68,8 @@ def _select(args: argparse.Namespace) -> LibrarySelection:
     given = _given(args.files)
     if args.no_library:
         return LibrarySelection(given)
-    selection = with_library(given, default_project().library())
+    project = default_project()
+    selection = with_library(given, [*project.library(), *project.components()])
     for note in selection.notes:
         print(f"armbench: note: {note}", file=sys.stderr)
     return selection
@@ -82,7 +83,9 @@ def _library_hint(diags: Sequence[Diagnostic]) -> str | None:
     """With --no-library: which library files declare the names the program misses."""
     unknown = {m.upper() for d in diags if d.code in ("E0200", "E0400")
                for m in re.findall(r"'(\w+)'", d.message)}
-    files = [lib.name for lib in default_project().library() if declared_names(lib) & unknown]
+    project = default_project()
+    files = [lib.name for lib in [*project.library(), *project.components()]
+             if declared_names(lib) & unknown]
     if not files:
         return None
     return (f"armbench: note: unknown names are declared in the armbench library "

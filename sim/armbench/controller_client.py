@@ -27,6 +27,7 @@ from contextlib import contextmanager
 from dataclasses import astuple, dataclass
 from typing import TypeVar
 
+from .mailbox_check import check_word
 from .registermap import Register, controller_constants, controller_map
 from .softplc import modbus_map as mm
 from .softplc.modbus_client import ModbusIoError, PlcClient
@@ -111,7 +112,7 @@ STATE_READY = _K["StateReady"]
 STATE_BUSY = _K["StateBusy"]
 MAILBOXES = _K["MailboxMax"]
 LEASE_SCANS = _K["MailboxLeaseScans"]
-MAX_SEQ = _K["MaxSeq"]
+MAX_SEQ = 2**31 - 1  # the largest DINT: MailboxServer follows it with 1
 
 JOINTS = ("Base", "Shoulder", "Elbow")  # SetCalibration Int1 0, 1, 2 = PCA9685 channels 0..2
 WRIST_JOINTS = ("WristPitch", "WristRoll")  # 5-axis arm: Int1 3, 4 = channels 3, 4
@@ -486,11 +487,6 @@ class Pending:
     sent_at: float  # time.monotonic() of the write
 
 
-def check_word(seq: int, session: int, code: int, int1: int, int2: int) -> int:
-    """MailboxCheckWord of Controller.st: the sum of the five DINTs' bit patterns mod 2^32."""
-    return sum(v & 0xFFFFFFFF for v in (seq, session, code, int1, int2)) & 0xFFFFFFFF
-
-
 def next_seq(seq: int) -> int:
     """The sequence number after ``seq`` (2147483647 is followed by 1, as in the program)."""
     return 1 if seq >= MAX_SEQ or seq < 1 else seq + 1
@@ -742,7 +738,7 @@ class ArmControllerClient:
         if len(args) > 6:
             raise ValueError(f"a command takes at most 6 REAL arguments, got {len(args)}")
         s = self.session if session is None else session
-        c = check_word(seq, s, code, *ints) if check is None else check
+        c = check_word(seq, s, code, *ints, args=args) if check is None else check
         values = (seq, s, code, *ints, *args, *([0.0] * (6 - len(args))), c)
         b = self._commands[mailbox - 1]
         words = b.encode(values)
@@ -753,7 +749,8 @@ class ArmControllerClient:
               args: Sequence[float]) -> Pending:
         self._seq = next_seq(self._seq)
         address, words = self.block_words(mailbox, self._seq, code, ints=ints, args=args)
-        p = Pending(mailbox, self._seq, code, check_word(self._seq, self.session, code, *ints),
+        p = Pending(mailbox, self._seq, code, check_word(self._seq, self.session, code, *ints,
+                                                         args=args),
                     address, tuple(words), time.monotonic())
         try:
             self.plc.write_registers(address, words)

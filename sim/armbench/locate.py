@@ -23,6 +23,8 @@ from pathlib import Path
 PACKAGE_DIR = Path(__file__).resolve().parent
 DATA_DIR = PACKAGE_DIR / "_data"  # filled by the wheel build; absent in a checkout
 CONTROLLER_REL = Path("plc_project") / "Controller.st"
+# The controller's function blocks (mailbox server, output stage, ...): one file each.
+COMPONENTS_REL = Path("plc_project") / "controller"
 
 
 class LocateError(Exception):
@@ -55,9 +57,15 @@ class Project:
         """st/*.st, sorted by name."""
         return sorted(self.st_dir.glob("*.st"))
 
+    def components(self) -> list[Path]:
+        """plc_project/controller/*.st, sorted by name: the blocks the controller PROGRAM is
+        composed of, usable in a user's own program too."""
+        return sorted((self.root / COMPONENTS_REL).glob("*.st"))
+
     def sources(self) -> list[Path]:
-        """The library then the controller: what the OpenPLC export and the demo compile."""
-        return [*self.library(), self.controller]
+        """The library, the controller's blocks, then the controller: what the OpenPLC export
+        and the demo compile."""
+        return [*self.library(), *self.components(), self.controller]
 
     def relative(self, path: Path) -> str | None:
         """``path`` relative to the root (``st/ArmAngles.st``), or None when outside it."""

@@ -23,6 +23,7 @@ from .compiler.driver import analyse
 from .compiler.symbols import InstanceModel
 from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
+from .mailbox_check import check_word
 from .softplc import modbus_map as mm
 
 # The program the tools use (the wheel's copy, or the checkout's: armbench.locate).
@@ -30,8 +31,9 @@ _PROJECT = default_project()
 # The whole library, as in the OpenPLC export: the controller may use any of it (the LUT
 # commands need KinematicsFixed.st), and the soft PLC then runs what the real PLC runs.
 LIBRARY_FILES = tuple(_PROJECT.library())
+COMPONENTS = tuple(_PROJECT.components())
 CONTROLLER = _PROJECT.controller
-SOURCES = (*LIBRARY_FILES, CONTROLLER)
+SOURCES = tuple(_PROJECT.sources())
 # The page lives in the repository only; None for an installed package (main() then looks
 # for the checkout it is run from).
 _CHECKOUT = package_checkout()
@@ -205,7 +207,7 @@ def _example(regs: dict[str, Register]) -> list[str]:
     seq, session, code = 1, 1234, 2
     values = {"SEQ": seq, "SESSION": session, "CODE": code, "INT1": 0, "INT2": 0,
               "ARG1": 10.0, "ARG2": 70.0, "ARG3": 65.0, "ARG4": 0.0, "ARG5": 0.0, "ARG6": 0.0,
-              "CHECK": (seq + session + code) & 0xFFFFFFFF}
+              "CHECK": check_word(seq, session, code, 0, 0, (10.0, 70.0, 65.0))}
     words: list[int] = []
     for field, value in values.items():
         r = regs[f"MBX01{field}"]
@@ -225,10 +227,14 @@ def _example(regs: dict[str, Register]) -> list[str]:
         "",
         "(Seq 1, Session 1234, Code 2, Int1 0, Int2 0, Arg1..Arg3 10.0/70.0/65.0 as REALs, "
         "Arg4..Arg6 0.0,",
-        f"Check 1 + 1234 + 2 = {values['CHECK']}). Then read the 8 registers at "
-        f"{answer.address} (Owner, AckSeq, Result,",
-        "AckCheck) until Owner = 1234, AckSeq = 1 and AckCheck = 1237: Result is the "
-        "command's result.",
+        "Check = 1*Seq + 3*Session + 5*Code + 7*Int1 + 9*Int2 + 11*Arg1 + 13*Arg2 + 15*Arg3 "
+        "+ 17*Arg4 + 19*Arg5",
+        "+ 21*Arg6 modulo 2^32, each REAL taken as its IEEE 754 single bit pattern: 1 + 3702 "
+        "+ 10 + 11*0x41200000",
+        f"+ 13*0x428C0000 + 15*0x42820000 = {values['CHECK']} = 0x{values['CHECK']:08X}). "
+        f"Then read the 8 registers at {answer.address} (Owner,",
+        f"AckSeq, Result, AckCheck) until Owner = 1234, AckSeq = 1 and AckCheck = "
+        f"{values['CHECK']}: Result is the command's result.",
         "",
     ]
 
@@ -274,7 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except LocateError as exc:
         print(f"python -m armbench.registermap: {exc}", file=sys.stderr)
         return 2
-    sources = [*checkout.library(), checkout.controller]
+    sources = checkout.sources()
     target = Path(args[0]) if args else checkout.root / "docs" / "register-map.md"
     target.write_text(render_markdown(derive(sources)), encoding="utf-8")
     print(f"wrote {target}")

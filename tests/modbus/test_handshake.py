@@ -55,10 +55,19 @@ def _seq(plc: ArmControllerClient) -> int:
 
 
 def test_check_word_matches_the_documented_formula() -> None:
-    # Seq + Session + Code + Int1 + Int2 modulo 2^32, negative DINTs as two's complement
-    assert check_word(1, 1234, 2, 0, 0) == 1237
-    assert check_word(5, -1, 1, 0, 0) == 5  # -1 is 0xFFFFFFFF: wraps to 5 + 1 - 1
-    assert check_word(2**31 - 1, 2**31 - 1, 2, 0, 0) == 0  # 2 * (2^31 - 1) + 2 = 2^32
+    # 1*Seq + 3*Session + 5*Code + 7*Int1 + 9*Int2 + 11*Arg1 + ... + 21*Arg6 modulo 2^32,
+    # negative DINTs as two's complement, REALs as their IEEE 754 single bit patterns
+    assert check_word(1, 1234, 2, 0, 0) == 1 + 3 * 1234 + 5 * 2
+    assert check_word(5, -1, 1, 0, 0) == (5 + 3 * 0xFFFFFFFF + 5) % 2**32
+    assert check_word(0, 0, 0, 1, 1) == 7 + 9
+    assert check_word(1, 1234, 2, 0, 0, (10.0, 70.0, 65.0)) == \
+        (1 + 3702 + 10 + 11 * 0x41200000 + 13 * 0x428C0000 + 15 * 0x42820000) % 2**32
+    assert check_word(0, 0, 0, 0, 0, (0.0,) * 5 + (1.5,)) == (21 * 0x3FC00000) % 2**32
+    # the patterns the PLC cannot tell apart by arithmetic: every NaN, and -0.0 as +0.0
+    assert check_word(0, 0, 0, 0, 0, (float("nan"),)) == (11 * 0x7FC00000) % 2**32
+    assert check_word(0, 0, 0, 0, 0, (-0.0,)) == 0
+    # two arguments swapped, or one argument changed, change the word
+    assert check_word(1, 2, 3, 0, 0, (1.0, 2.0)) != check_word(1, 2, 3, 0, 0, (2.0, 1.0))
 
 
 def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
@@ -70,15 +79,15 @@ def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
     k = free[0]
     base = controller_map()[f"MBX{k:02d}SEQ"].address
     words = [0x0000, 0x0001, 0x0000, 0x04D2, 0x0000, 0x0002, 0, 0, 0, 0,
-             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x0000, 0x04D5]
+             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x131A, 0x0E81]
     plc.plc.write_registers(base, words)
     deadline = time.monotonic() + 2.0
     while plc.answer(k).ack_seq != 1 and time.monotonic() < deadline:
         time.sleep(0.002)
     a = plc.answer(k)
-    assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 1237)
+    assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 0x131A0E81)
     assert plc.status().joints_deg == (10.0, 70.0, 65.0)
-    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0x0000, 0x04DD]
+    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0x0000, 0x0EA5]
     plc.plc.write_registers(base, close)
     while plc.answer(k).owner != 0 and time.monotonic() < deadline + 2.0:
         time.sleep(0.002)
