@@ -59,8 +59,11 @@ def test_batch_blocks_are_regular_and_match_the_program() -> None:
     source = registermap.CONTROLLER.read_text(encoding="utf-8")
     assert f"BatchMax : DINT := {n};" in source
     assert f"MailboxMax : DINT := {MAILBOXES};" in source
-    assert f"MbxIn : ARRAY[1..{MAILBOXES}] OF MailboxCommand;" in source
-    assert f"MbxState : ARRAY[1..{MAILBOXES}] OF MailboxState;" in source
+    server = (registermap.CONTROLLER.parent / "controller" / "MailboxServer.st").read_text(
+        encoding="utf-8")
+    assert f"MailboxBlocks : ARRAY[1..{MAILBOXES}] OF MailboxCommand;" in server
+    assert f"MailboxStates : ARRAY[1..{MAILBOXES}] OF MailboxState;" in server
+    assert f"MailboxCount : DINT := {MAILBOXES};" in server
     assert f"BatchIn : ARRAY[1..{n}] OF Coordinates;" in source
     assert f"BatchOut : ARRAY[1..{n}] OF ArmPointResult;" in source
     first_target = regs["BATCHX01"].address

@@ -35,6 +35,7 @@ from armbench.controller_client import (
     ERR_JOG_TIMEOUT,
     ERR_NOT_FINITE,
     ERR_NOT_MOTION_OWNER,
+    ERR_JOINT_LIMIT,
     ERR_OK,
     JOG_DEADMAN_SCANS,
     JOINT_GRIPPER,
@@ -366,6 +367,21 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
     plc.wait_scans(3)
     assert plc.gripper() == before and plc.gripper_calibration() == cal
     assert plc.channel_words()[5] == word
+    # the default calibration is refused while the gripper stands at 2100 us, outside its
+    # 1000..2000 us (the servo never moves for a calibration); at 1500 us it is taken and
+    # the opening is re-read: 1500 us is servo angle -10 deg here (joint 20 deg, 50 %) and
+    # the default's servo centre (joint 0 deg, 50 % of -60..60)
+    assert plc.gripper().pulse_us == pytest.approx(2100.0, abs=1e-3)
+    assert plc.set_calibration(JOINT_GRIPPER, Calibration()).error_id == ERR_JOINT_LIMIT
+    assert plc.set_gripper(100.0 * (20.0 - lower) / (upper - lower)).error_id == ERR_OK
+    wait_gripper_still(plc)
+    assert plc.gripper().pulse_us == pytest.approx(1500.0, abs=1e-3)
+    word = plc.channel_words()[5]
+    assert plc.set_calibration(JOINT_GRIPPER, Calibration()).error_id == ERR_OK
+    plc.wait_scans(3)
+    g = plc.gripper()
+    assert g.pulse_us == pytest.approx(1500.0, abs=1e-3) and plc.channel_words()[5] == word
+    assert g.opening_pct == pytest.approx(50.0, abs=1e-3)
 
 
 def test_gripper_does_not_disturb_an_arm_motion(plc: ArmControllerClient) -> None:
