@@ -198,8 +198,12 @@ class SteppedController:
     _md_i: memoryview = field(init=False)
     _md_f: memoryview = field(init=False)
     _pulse_idx: tuple[int, ...] = field(init=False)
+    _slots: dict[str, tuple[int, str]] = field(init=False)
 
     def __post_init__(self) -> None:
+        # name -> (%MD index, ST type), parsed once: the monitors read dozens per scan
+        self._slots = {name: (r.index, r.st_type.upper()) for name, r in self.regs.items()
+                       if r.location.startswith("%MD")}
         self._pulse_idx = tuple(self.index(f"{c}PULSEUS") for c in CHANNELS)
         raw = self.program.image.raw[MD_OFFSET:ML_OFFSET]
         self._md_u = raw.cast("I")
@@ -226,19 +230,19 @@ class SteppedController:
 
     # -- registers -----------------------------------------------------------------------------
     def index(self, name: str) -> int:
-        return int(self.regs[name.upper()].index)
+        return self._slots[name.upper()][0]
 
     def read(self, name: str) -> float | int:
         """A %MD register decoded by its ST type (REAL, DINT, UDINT)."""
-        reg = self.regs[name.upper()]
-        t = reg.st_type.upper()
-        if not reg.location.startswith("%MD"):
-            raise ValueError(f"{name} is {reg.location}, not a %MD register")
-        if t == "REAL":
-            return float(self._md_f[reg.index])
-        if t == "DINT":
-            return int(self._md_i[reg.index])
-        return int(self._md_u[reg.index])
+        try:
+            idx, kind = self._slots[name.upper()]
+        except KeyError:
+            raise KeyError(f"{name} is not a %MD register of the controller") from None
+        if kind == "REAL":
+            return float(self._md_f[idx])
+        if kind == "DINT":
+            return int(self._md_i[idx])
+        return int(self._md_u[idx])
 
     def pulses(self) -> tuple[float, ...]:
         return tuple(float(self._md_f[i]) for i in self._pulse_idx)
