@@ -586,9 +586,14 @@ class _Braking:
     last_moving: list[int]
 
 
+# Stop always brakes: a refused deceleration is answered BadParameter and brakes all the same
+STOP_ANSWERS = (OK, BAD_PARAMETER)
+
+
 @dataclass
 class StopMonitor:
-    """Promise B: after an accepted Stop (and no later accepted motion start in a later scan
+    """Promise B: after a Stop (answered 0, or 8 for a refused deceleration that brakes all
+    the same) and no later accepted motion start in a later scan
     or a later mailbox of the same scan) every arm channel's step is 0 from scan
     Stop + ceil(Vel / (min(Acc, 100) * dt)) + 5 on. Uses the OutputMonitor's steps."""
 
@@ -616,7 +621,7 @@ class StopMonitor:
                       or (code == FOLLOW_IMU and (a.block.int1 & 1) == 1))
             if a.result == OK and starts:
                 self._finish()
-            elif a.result == OK and code == STOP and self.braking is None:
+            elif (a.result in STOP_ANSWERS and code == STOP and self.braking is None):
                 self.stops += 1
                 bounds = []
                 for c in range(ARM_CHANNELS):
