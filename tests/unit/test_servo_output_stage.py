@@ -36,7 +36,8 @@ def stage_module() -> Any:
 
 
 def g_of(cal: dict[str, Any]) -> float:
-    return float((cal["MaxPulseUs"] - cal["MinPulseUs"]) / (cal["MaxAngleDeg"] - cal["MinAngleDeg"]))
+    span_us = cal["MaxPulseUs"] - cal["MinPulseUs"]
+    return float(span_us / (cal["MaxAngleDeg"] - cal["MinAngleDeg"]))
 
 
 @dataclass
@@ -163,8 +164,10 @@ limits = st.tuples(st.sampled_from([0.1, 30.0, 150.0, 2000.0]),
 
 @given(st.lists(st.tuples(st.booleans(), command, st.integers(1, 40)), min_size=1, max_size=12),
        cal_choice, limits)
-def test_invariants_under_hostile_sequences(stage_module: Any, program: list[tuple[bool, float, int]],
-                                            cal: dict[str, Any], lim: tuple[float, float]) -> None:
+def test_invariants_under_hostile_sequences(stage_module: Any,
+                                            program: list[tuple[bool, float, int]],
+                                            cal: dict[str, Any],
+                                            lim: tuple[float, float]) -> None:
     ch = Channel(stage_module)
     for powered, cmd, scans in program:
         for _ in range(scans):
