@@ -20,7 +20,7 @@ from pathlib import Path
 from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
-from .compiler.symbols import InstanceModel
+from .compiler.symbols import CheckedProgram, InstanceModel, PouSym
 from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
@@ -109,7 +109,8 @@ def _group_and_comment(lines: Sequence[str], line: int) -> tuple[str, str]:
     return group, description
 
 
-def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceModel:
+def _analysed(paths: Sequence[str | Path],
+              instance: str | None) -> tuple[CheckedProgram, InstanceModel]:
     prog, diags = analyse(list(paths))
     if prog is None:
         raise CompileFailed(diags.sorted())
@@ -118,7 +119,11 @@ def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceMode
     inst = prog.config.instances[0]
     if instance is not None:
         inst = next(i for i in prog.config.instances if i.name.upper() == instance.upper())
-    return inst
+    return prog, inst
+
+
+def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceModel:
+    return _analysed(paths, instance)[1]
 
 
 def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -> list[Register]:
@@ -150,8 +155,12 @@ def constants(paths: Sequence[str | Path] = SOURCES,
 
 
 def _constants(inst: InstanceModel) -> dict[str, int]:
+    return _pou_constants(inst.pou)
+
+
+def _pou_constants(pou: PouSym) -> dict[str, int]:
     out: dict[str, int] = {}
-    for var in inst.pou.vars.values():
+    for var in pou.vars.values():
         if not var.constant:
             continue
         if isinstance(var.init, Literal) and var.init.kind == "int":
@@ -165,15 +174,34 @@ def _constants(inst: InstanceModel) -> dict[str, int]:
 
 
 @cache
-def _controller_instance() -> InstanceModel:
+def _controller_analysis() -> tuple[CheckedProgram, InstanceModel]:
     # one analysis of the library + controller serves both the map and the constants
-    return _instance(SOURCES, None)
+    return _analysed(SOURCES, None)
+
+
+def _controller_instance() -> InstanceModel:
+    return _controller_analysis()[1]
 
 
 @cache
 def controller_constants() -> dict[str, int]:
-    """constants() of the controller, computed once per process."""
-    return _constants(_controller_instance())
+    """The controller's integer constants, computed once per process: the program's and
+    those of its blocks (plc_project/controller/*.st), each command's code declared by the
+    block that runs it. One name with two values is a defect of the controller."""
+    prog, inst = _controller_analysis()
+    out = _constants(inst)
+    where = dict.fromkeys(out, inst.pou.name)
+    parts = {str(Path(p).resolve()) for p in COMPONENTS}
+    for pou in prog.pous.values():
+        if pou.node is None or str(Path(pou.node.pos.file).resolve()) not in parts:
+            continue
+        for name, value in _pou_constants(pou).items():
+            if name in out and out[name] != value:
+                raise ValueError(f"constant {name} is {out[name]} in {where[name]} but {value} "
+                                 f"in {pou.name}: the controller must give it one value")
+            out.setdefault(name, value)
+            where.setdefault(name, pou.name)
+    return out
 
 
 @cache
