@@ -11,7 +11,9 @@ import pytest
 from armbench.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
-LIBRARY = sorted((REPO / "st").glob("*.st"))
+# what the tools add to a user's files: the ST library and the controller's blocks
+LIBRARY = [*sorted((REPO / "st").glob("*.st")),
+           *sorted((REPO / "plc_project" / "controller").glob("*.st"))]
 CONTROLLER = REPO / "plc_project" / "Controller.st"
 EXPORTS = [REPO / "plc_project" / "openplc" / "arm_controller.st",
            REPO / "plc_project" / "plcopen" / "arm_controller.xml"]
