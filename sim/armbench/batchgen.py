@@ -100,12 +100,12 @@ def copy_out() -> list[str]:
     for k in range(1, POINTS + 1):
         n = f"{k:02d}"
         lines += [
-            f"{INDENT[:2]}ResBase{n} := BatchOut[{k}].Angles.Base; "
-            f"ResShoulder{n} := BatchOut[{k}].Angles.Shoulder;",
-            f"{INDENT[:2]}ResElbow{n} := BatchOut[{k}].Angles.Elbow; "
-            f"ResErrorId{n} := BatchOut[{k}].ErrorId;",
-            f"{INDENT[:2]}ResX{n} := BatchOut[{k}].Echo.X; ResY{n} := BatchOut[{k}].Echo.Y; "
-            f"ResZ{n} := BatchOut[{k}].Echo.Z;",
+            f"{INDENT[:2]}ResBase{n} := Batch.Results[{k}].Angles.Base; "
+            f"ResShoulder{n} := Batch.Results[{k}].Angles.Shoulder;",
+            f"{INDENT[:2]}ResElbow{n} := Batch.Results[{k}].Angles.Elbow; "
+            f"ResErrorId{n} := Batch.Results[{k}].ErrorId;",
+            f"{INDENT[:2]}ResX{n} := Batch.Results[{k}].Echo.X; ResY{n} := Batch.Results[{k}].Echo.Y; "
+            f"ResZ{n} := Batch.Results[{k}].Echo.Z;",
         ]
     return lines
 

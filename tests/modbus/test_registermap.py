@@ -57,15 +57,17 @@ def test_batch_blocks_are_regular_and_match_the_program() -> None:
     regs = registermap.controller_map()
     n = sum(1 for name in regs if name.startswith("BATCHX"))
     source = registermap.CONTROLLER.read_text(encoding="utf-8")
-    assert f"BatchMax : DINT := {n};" in source
+    solver = (registermap.CONTROLLER.parent / "controller" / "BatchSolver.st").read_text(
+        encoding="utf-8")
+    assert f"BatchMax : DINT := {n};" in solver
+    assert f"BatchTargets : ARRAY[1..{n}] OF Coordinates;" in solver
+    assert f"ArmPointResults : ARRAY[1..{n}] OF ArmPointResult;" in solver
     assert f"MailboxMax : DINT := {MAILBOXES};" in source
     server = (registermap.CONTROLLER.parent / "controller" / "MailboxServer.st").read_text(
         encoding="utf-8")
     assert f"MailboxBlocks : ARRAY[1..{MAILBOXES}] OF MailboxCommand;" in server
     assert f"MailboxStates : ARRAY[1..{MAILBOXES}] OF MailboxState;" in server
     assert f"MailboxCount : DINT := {MAILBOXES};" in server
-    assert f"BatchIn : ARRAY[1..{n}] OF Coordinates;" in source
-    assert f"BatchOut : ARRAY[1..{n}] OF ArmPointResult;" in source
     first_target = regs["BATCHX01"].address
     first_result = regs["RESBASE01"].address
     for k in range(1, n + 1):
@@ -76,7 +78,7 @@ def test_batch_blocks_are_regular_and_match_the_program() -> None:
         for j, field in enumerate(("BASE", "SHOULDER", "ELBOW", "X", "Y", "Z", "ERRORID")):
             r = regs[f"RES{field}{k:02d}"]
             assert r.address == first_result + 14 * (k - 1) + 2 * j
-        assert f"ResErrorId{k:02d} := BatchOut[{k}].ErrorId;" in source
+        assert f"ResErrorId{k:02d} := Batch.Results[{k}].ErrorId;" in source
     assert first_target + 6 * n <= first_result  # targets and results do not overlap
 
 
@@ -101,7 +103,7 @@ def test_register_map_doc_lists_every_command() -> None:
     silently cut one short."""
     text = registermap.DOC.read_text(encoding="utf-8")
     commands = {name[3:]: code for name, code in registermap.controller_constants().items()
-                if name.startswith("Cmd") and not name.endswith("Last")}
+                if name.startswith("Cmd") and not name.endswith(("First", "Last"))}
     assert len(commands) >= 30
     missing = [f"{code} {name}" for name, code in commands.items()
                if not re.search(rf"(?m)^ *{code} {name}\b", text)]
