@@ -104,8 +104,9 @@ def copy_out() -> list[str]:
             f"ResShoulder{n} := Batch.Results[{k}].Angles.Shoulder;",
             f"{INDENT[:2]}ResElbow{n} := Batch.Results[{k}].Angles.Elbow; "
             f"ResErrorId{n} := Batch.Results[{k}].ErrorId;",
-            f"{INDENT[:2]}ResX{n} := Batch.Results[{k}].Echo.X; ResY{n} := Batch.Results[{k}].Echo.Y; "
-            f"ResZ{n} := Batch.Results[{k}].Echo.Z;",
+            f"{INDENT[:2]}ResX{n} := Batch.Results[{k}].Echo.X; "
+            f"ResY{n} := Batch.Results[{k}].Echo.Y;",
+            f"{INDENT[:2]}ResZ{n} := Batch.Results[{k}].Echo.Z;",
         ]
     return lines
 

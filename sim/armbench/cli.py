@@ -27,6 +27,7 @@ from .locate import (
     LibrarySelection,
     LocateError,
     NotACheckout,
+    components_used,
     declared_names,
     default_project,
     find_checkout,
@@ -69,7 +70,8 @@ def _select(args: argparse.Namespace) -> LibrarySelection:
     if args.no_library:
         return LibrarySelection(given)
     project = default_project()
-    selection = with_library(given, [*project.library(), *project.components()])
+    library = project.library()
+    selection = with_library(given, [*library, *components_used(given, project.components())])
     for note in selection.notes:
         print(f"armbench: note: {note}", file=sys.stderr)
     return selection

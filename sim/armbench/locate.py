@@ -16,6 +16,7 @@ Two different questions, kept apart on purpose:
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -183,3 +184,35 @@ def with_library(given: Sequence[Path], library: Sequence[Path]) -> LibrarySelec
                      f"left out: your files declare the same names (e.g. "
                      f"{', '.join(sorted(clashes)[:2])})")
     return LibrarySelection([*given, *added], added, notes)
+
+
+_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _words(path: Path) -> set[str]:
+    try:
+        return {w.upper() for w in _WORD.findall(path.read_text(encoding="utf-8",
+                                                                errors="replace"))}
+    except OSError:
+        return set()
+
+
+def components_used(given: Sequence[Path], components: Sequence[Path]) -> list[Path]:
+    """The controller's blocks (``plc_project/controller/*.st``) that ``given`` needs: those
+    declaring a name that the given files, or a block already needed, spell. A user's program
+    that composes a MailboxServer gets it and what it uses; one that does not gets none of
+    them (they are not part of the ST library)."""
+    given_res = {p.resolve() for p in given}
+    left = [c for c in components if c.resolve() not in given_res]
+    words: set[str] = set().union(*(_words(p) for p in given)) if given else set()
+    needed: list[Path] = []
+    changed = True
+    while changed:
+        changed = False
+        for comp in list(left):
+            if declared_names(comp) & words:
+                needed.append(comp)
+                left.remove(comp)
+                words |= _words(comp)
+                changed = True
+    return sorted(needed, key=lambda p: p.name)

@@ -11,9 +11,9 @@ import pytest
 from armbench.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
-# what the tools add to a user's files: the ST library and the controller's blocks
-LIBRARY = [*sorted((REPO / "st").glob("*.st")),
-           *sorted((REPO / "plc_project" / "controller").glob("*.st"))]
+LIBRARY = sorted((REPO / "st").glob("*.st"))
+# the controller's blocks: added to a user's files only when they use one of them
+BLOCKS = sorted((REPO / "plc_project" / "controller").glob("*.st"))
 CONTROLLER = REPO / "plc_project" / "Controller.st"
 EXPORTS = [REPO / "plc_project" / "openplc" / "arm_controller.st",
            REPO / "plc_project" / "plcopen" / "arm_controller.xml"]
@@ -72,10 +72,11 @@ def test_check_ends_with_a_summary(prog: Path, capsys: pytest.CaptureFixture[str
         f"{pous_in([prog, *LIBRARY])} POUs: 0 errors")
     assert main(["check", "--no-library", str(prog)]) == 0
     assert capsys.readouterr().err.strip() == "checked 1 file, 1 POU: 0 errors"
-    assert main(["check"]) == 0  # no files: the library and the controller
+    assert main(["check"]) == 0  # no files: the library, the controller and its blocks
     assert capsys.readouterr().err.strip() == (
-        f"checked {len(LIBRARY) + 1} files (the armbench library and "
-        f"plc_project/Controller.st), {pous_in([*LIBRARY, CONTROLLER])} POUs: 0 errors")
+        f"checked {len(LIBRARY) + len(BLOCKS) + 1} files (the armbench library and "
+        f"plc_project/Controller.st), {pous_in([*LIBRARY, *BLOCKS, CONTROLLER])} POUs: "
+        "0 errors")
 
 
 def test_check_summary_counts_errors(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -117,7 +118,7 @@ def test_users_modified_copy_replaces_the_library_file(
     assert main(["check", str(same_name), str(CONTROLLER)]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     # the user's copy (one POU more) instead of the library's: no duplicate declarations
-    assert err[-1].endswith(f", {pous_in([*LIBRARY, CONTROLLER]) + 1} POUs: 0 errors")
+    assert err[-1].endswith(f", {pous_in([*LIBRARY, *BLOCKS, CONTROLLER]) + 1} POUs: 0 errors")
 
     renamed = tmp_path / "my_servo.st"
     renamed.write_text(original.read_text(encoding="utf-8"))

@@ -167,13 +167,19 @@ def test_packaged_files_are_the_repository_files(installed: Installed) -> None:
         assert (data / "st" / name).read_bytes() == (REPO / "st" / name).read_bytes(), name
     controller = data / "plc_project" / "Controller.st"
     assert controller.read_bytes() == (REPO / "plc_project" / "Controller.st").read_bytes()
+    blocks = sorted(p.name for p in (data / "plc_project" / "controller").glob("*.st"))
+    assert blocks == sorted(p.name for p in (REPO / "plc_project" / "controller").glob("*.st"))
+    for name in blocks:
+        assert (data / "plc_project" / "controller" / name).read_bytes() == \
+            (REPO / "plc_project" / "controller" / name).read_bytes(), name
 
 
 def test_check_packaged_library_and_a_user_file(installed: Installed) -> None:
     n_lib = len(list((REPO / "st").glob("*.st")))
+    n_blocks = len(list((REPO / "plc_project" / "controller").glob("*.st")))
     proc = installed.armbench("check")
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.fullmatch(rf"checked {n_lib + 1} files \(the armbench library and "
+    assert re.fullmatch(rf"checked {n_lib + n_blocks + 1} files \(the armbench library and "
                         r"plc_project/Controller.st\), \d+ POUs: 0 errors",
                         proc.stderr.strip().splitlines()[-1]), proc.stderr
     proc = installed.armbench("check", str(installed.site / "armbench" / "_data" / "st"))
@@ -241,7 +247,9 @@ def test_export_goes_to_the_named_folder_only(installed: Installed) -> None:
     data = installed.site / "armbench" / "_data"
     assert sorted(p.name for p in data.rglob("*")) == sorted(
         [*(p.name for p in (REPO / "st").glob("*.st")), "Controller.st", "st",
-         "plc_project"])  # nothing written into site-packages
+         "plc_project", "controller",
+         *(p.name for p in (REPO / "plc_project" / "controller").glob("*.st"))])
+    # nothing written into site-packages
 
 
 def test_generators_refuse_to_run_outside_a_checkout(installed: Installed) -> None:
