@@ -185,22 +185,24 @@ def _controller_instance() -> InstanceModel:
 
 @cache
 def controller_constants() -> dict[str, int]:
-    """The controller's integer constants, computed once per process: the program's and
-    those of its blocks (plc_project/controller/*.st), each command's code declared by the
-    block that runs it. One name with two values is a defect of the controller."""
+    """The controller's integer constants, computed once per process: the program's, and
+    those of its blocks (plc_project/controller/*.st), where each command's code is declared
+    by the block that runs it. A name two blocks give different values (a block's private
+    constant, e.g. a call mode) is left out unless the program declares it."""
     prog, inst = _controller_analysis()
     out = _constants(inst)
-    where = dict.fromkeys(out, inst.pou.name)
+    merged: dict[str, int] = {}
+    ambiguous: set[str] = set()
     parts = {str(Path(p).resolve()) for p in COMPONENTS}
     for pou in prog.pous.values():
         if pou.node is None or str(Path(pou.node.pos.file).resolve()) not in parts:
             continue
         for name, value in _pou_constants(pou).items():
-            if name in out and out[name] != value:
-                raise ValueError(f"constant {name} is {out[name]} in {where[name]} but {value} "
-                                 f"in {pou.name}: the controller must give it one value")
+            if merged.setdefault(name, value) != value:
+                ambiguous.add(name)
+    for name, value in merged.items():
+        if name not in ambiguous:
             out.setdefault(name, value)
-            where.setdefault(name, pou.name)
     return out
 
 
