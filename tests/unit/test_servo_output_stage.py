@@ -172,3 +172,18 @@ def test_invariants_under_hostile_sequences(stage_module: Any,
     for powered, cmd, scans in program:
         for _ in range(scans):
             ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1])
+
+
+def test_a_command_running_past_the_travel_end_is_braked_before_it(stage_module: Any) -> None:
+    """A generator that drives on past the travel at nearly full speed (a slow Stop, a jog
+    whose limits are wrong): the stage must start braking early enough to stop at 2000 us
+    within its acceleration limit, not follow the command to the end and stop dead there."""
+    ch = Channel(stage_module)
+    cmd = 0.0
+    for _ in range(200):
+        ch.step(True, cmd)
+    for _ in range(300):
+        cmd += 140.0 * DT  # 140 deg/s, under the 150 deg/s limit, on past +60 deg
+        out = ch.step(True, cmd)
+    assert out.PulseUs == 2000.0 and not out.Moving
+    assert ch.worst_acc <= 1.0 + 1e-3
