@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
@@ -187,3 +188,29 @@ def test_a_command_running_past_the_travel_end_is_braked_before_it(stage_module:
         out = ch.step(True, cmd)
     assert out.PulseUs == 2000.0 and not out.Moving
     assert ch.worst_acc <= 1.0 + 1e-3
+
+
+def test_a_group_replanned_from_the_stage_angle_does_not_move_a_resting_servo(
+        stage_module: Any) -> None:
+    """The controller re-plans its group from the stage's own joint angle (AngleDeg, read back
+    from the held pulse through float32). Commanding that angle to a resting channel must not
+    move it by the ulp the round trip pulse -> angle -> pulse loses."""
+    moved = []
+    rng = np.random.default_rng(20261126)
+    cals = [DEFAULT_CAL, dict(DEFAULT_CAL, ZeroOffsetDeg=70.0),
+            dict(DEFAULT_CAL, ZeroOffsetDeg=65.0, Direction=-1),
+            dict(DEFAULT_CAL, ZeroOffsetDeg=1.0 / 3.0, MinPulseUs=900.0, MaxPulseUs=2100.0)]
+    for cal in cals:
+        # about 1 angle in 500 loses an ulp on the round trip: draw many
+        for target in cal["ZeroOffsetDeg"] + rng.uniform(-59.0, 59.0, 1500):
+            ch = Channel(stage_module)
+            for _ in range(30):
+                out = ch.step(True, float(target), cal=cal, vel=2000.0, acc=1.0e5)
+            assert not out.Moving
+            held = float(out.PulseUs)
+            for _ in range(3):
+                out = ch.step(True, float(out.AngleDeg), cal=cal, vel=2000.0, acc=1.0e5)
+                if float(out.PulseUs) != held:
+                    moved.append((float(target), held, float(out.PulseUs)))
+                    break
+    assert not moved, f"{len(moved)} resting servos moved, e.g. {moved[:3]}"
