@@ -9,9 +9,11 @@ can use them:
   never share one). With ``--plc-address HOST:PORT[,HOST:PORT...]`` (or ``--plc-host`` /
   ``--plc-port`` for one) real PLCs (OpenPLC running ``plc_project/openplc/arm_controller.st``):
   xdist worker N gets the N-th address. More workers than addresses is a usage error unless
-  ``--plc-share`` lets the workers take the addresses in turn (the controller's 16 mailboxes
-  keep their commands apart; suites that need a PLC to themselves, like the soak's count of
-  answered commands, do not hold then).
+  ``--plc-share`` lets the workers take the addresses in turn. The controller's 16 mailboxes
+  keep the workers' commands apart, but the arm is one: a suite that moves it, calibrates it
+  or counts its answers (tests/modbus: the motion, calibration, gripper and soak tests) needs
+  the PLC to itself, and fails when another worker moves the same arm. Share a PLC only
+  between suites that read, solve or answer without moving it.
 - ``plc``: an :class:`~armbench.controller_client.ArmControllerClient` connected to it.
 - ``motion_recorder``: a factory of :class:`~armbench.controller_client.MotionRecorder`s on
   their own connections to it (one FC3 read of the motion registers per scan, tagged with
@@ -102,8 +104,9 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError(
             f"{workers} pytest-xdist workers but {len(addresses)} PLC address(es): give one "
             f"--plc-address entry per worker (or -n {len(addresses)}), or add --plc-share to "
-            f"let workers share a PLC (its 16 mailboxes keep their commands apart, but tests "
-            f"that need the PLC to themselves, such as test_soak, then fail)")
+            f"let workers share a PLC (its 16 mailboxes keep their commands apart, but a test "
+            f"that moves, calibrates or counts the one arm, as most of tests/modbus does, then "
+            f"fails when another worker moves it)")
     config.pluginmanager.register(_SweepReporter(config, max(workers, 1)), "armbench-sweep")
 
 
