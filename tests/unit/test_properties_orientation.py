@@ -641,3 +641,13 @@ def test_gyro_step_turns_beyond_a_million_degrees(st_module: Any,
     turn = float(np.linalg.norm(gyro))
     assert angle_deg(got, want.as_quat(scalar_first=True)) < 3e-4 + 4.0 * float(
         np.spacing(np.float32(turn)))
+
+
+@pytest.mark.parametrize("q", [(0.0, 0.0, 0.0, math.nan), (0.0, math.nan, 0.0, 0.0),
+                               (math.nan, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0)])
+def test_quat_norm_of_a_nan_behind_zeros_is_nan(st_module: Any,
+                                                q: tuple[float, float, float, float]) -> None:
+    """'NaN in gives NaN out': a NaN after zero components was skipped by the largest-component
+    search and the norm came out 0.0."""
+    norm = st_module.call("QuatNorm", quat(np.array(q)))
+    assert math.isnan(norm) if any(math.isnan(v) for v in q) else norm == 0.0
