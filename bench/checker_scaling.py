@@ -1,4 +1,4 @@
-"""How `armbench check` and the C build scale with long flat code (issue 8; prints figures).
+"""How `armbench check` and the C build scale with long flat code (prints figures).
 
 Long chains (`x + x + ...`), long ELSIF and CASE lists and long call graphs are legal at any
 size; deep nesting stops at E0108 after the syntax-tree walk. Times are the best of 3.

@@ -1,4 +1,4 @@
-"""Compiler and runtime figures for issue 2 (prints figures; not a test).
+"""Compiler and runtime figures (prints figures; not a test).
 
 1. an IK-like REAL kernel compiled from ST vs the same kernel hand-written in C (ratio);
 2. cold and cached build of all of st/;

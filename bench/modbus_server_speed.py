@@ -7,7 +7,7 @@ running), transactions per second of
 
 * the soft PLC with its compiled request path (``armbench serve``'s default),
 * the soft PLC with the Python request path (``ModbusServer(fast_path=False)``, the server
-  before issue #12),
+  before the fast path),
 * the OpenPLC v3 runtime running ``plc_project/openplc/arm_controller.st``, where
   ``/opt/realplc/run-openplc.sh`` exists (otherwise a line says it was skipped).
 

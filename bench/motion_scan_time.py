@@ -1,4 +1,4 @@
-"""Scan time of the controller with each motion block active (issue #9; prints figures, not
+"""Scan time of the controller with each motion block active (prints figures, not
 a test).
 
 The packaged controller runs in the soft PLC at its real 10 ms task; a client starts one

@@ -12,7 +12,7 @@ PCA9685 with smbus2. The chip is initialised once (sleep -> PRE_SCALE -> wake ->
 RESTART|AI), again on a rising edge of the init request, and again after any I2C error (the
 board may have lost power).
 
-IMU (ImuReader, issue #11): every SAMPLE_PERIOD_S it reads one sample of an MPU6050 (gyro,
+IMU (ImuReader): every SAMPLE_PERIOD_S it reads one sample of an MPU6050 (gyro,
 accelerometer) and an HMC5883L (magnetometer, behind the MPU6050's I2C bypass on GY-87 boards)
 and publishes it to %IW0..8 together with the incremented sample counter %IW9 in ONE set_var
 call, so the runtime never sees half a sample. Send the controller `ImuSetPeriod` with the same

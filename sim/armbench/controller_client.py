@@ -66,7 +66,7 @@ CMD_JOG_WRIST = _K["CmdJogWrist"]
 CMD_SET_GRIPPER = _K["CmdSetGripper"]
 KIND_JOG_WRIST = _K["KindJogWrist"]
 JOINT_GRIPPER = _K["JointGripper"]
-# IMU commands 40..45 (issue #11; Controller.st IMU COMMANDS)
+# IMU commands 40..45 (Controller.st IMU COMMANDS)
 CMD_IMU_SELECT_FILTER = _K["CmdImuSelectFilter"]
 CMD_IMU_SET_PERIOD = _K["CmdImuSetPeriod"]
 CMD_IMU_SET_GYRO_BIAS = _K["CmdImuSetGyroBias"]
@@ -1204,7 +1204,7 @@ class ArmControllerClient:
                                              (mm100[0], mm100[1], mm100[2]), p.error_id))
         return out
 
-    # ----- IMU (issue #11): commands 40..45 and the result block -----
+    # ----- IMU: commands 40..45 and the result block -----
     def imu_state(self) -> ImuState:
         """The IMU result block as it is now (one read: a consistent snapshot)."""
         return ImuState.decode(self._read_block(self._imu))

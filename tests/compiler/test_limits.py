@@ -1,4 +1,4 @@
-"""Limits of the checker (issue #8, item 6): deep nesting, long chains, recursive containment.
+"""Limits of the checker: deep nesting, long chains, recursive containment.
 
 Each audit finding has a test here: inputs that crashed `armbench check` with RecursionError
 (a 329-term sum, 492 nested IFs, 984 nested parentheses, a chain of 990 calls) and types or

@@ -28,6 +28,8 @@ from typing import Final
 
 import numpy as np
 
+# the answer record only: the harness computes check words and decodes registers itself
+from armbench.controller_client import Answer
 from armbench.registermap import SOURCES, Register, controller_map
 from armbench.softplc.image import MD_OFFSET, ML_OFFSET
 from armbench.softplc.loader import LoadedProgram, load_program
@@ -142,14 +144,6 @@ class Block:
         args = ", ".join(f"{bits_real(a):.6g}" for a in self.args)
         return (f"mbx{self.mailbox:02d} session {self.session} seq {self.seq} code {self.code} "
                 f"int1 {self.int1} int2 {self.int2} args ({args}) check {self.check:#010x}")
-
-
-@dataclass(frozen=True)
-class Answer:
-    owner: int
-    ack_seq: int
-    result: int
-    ack_check: int
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The controller's IMU layer (Controller.st IMU COMMANDS, issue #11) on the in-process soft PLC.
+"""The controller's IMU layer (Controller.st IMU COMMANDS) on the in-process soft PLC.
 
 Samples go into the input registers through armbench.plant.imu_feed (the plant writes the
 process image, as the PSM does on a Pi: %IW cannot be written over Modbus); commands and the

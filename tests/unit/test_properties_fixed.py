@@ -394,7 +394,7 @@ def test_inverse_kinematik_fixed(
 
 
 def test_defect_fixed_ik_min_dint_is_rejected(st_module: Any) -> None:
-    """Issue #8: XMm100 = -2,147,483,648 came back Valid (ABS of the most negative DINT
+    """Regression: XMm100 = -2,147,483,648 came back Valid (ABS of the most negative DINT
     wraps to itself and passed the range check). Same for every coordinate and length."""
     fb = st_module.new_fb("InverseKinematikFixed")
     for name in ("XMm100", "YMm100", "ZMm100"):
@@ -413,7 +413,7 @@ def test_defect_fixed_ik_min_dint_is_rejected(st_module: Any) -> None:
 
 
 def test_defect_fixed_fk_large_angles(st_module: Any) -> None:
-    """Issue #8: the fixed FK gave wrong poses for large angles its header allows (Shoulder
+    """Regression: the fixed FK gave wrong poses for large angles its header allows (Shoulder
     + Elbow wrapped in DINT). Now any DINT angle gives the pose of its value mod 360 deg."""
     fk = st_module.new_fb("ForwardKinematicFixed")
     for s, e in ((2_147_483_000, 2_147_483_000), (DINT_MAX, DINT_MAX), (DINT_MIN, DINT_MIN),

@@ -437,7 +437,7 @@ def test_inverse_kinematik_dh_valid_means_on_target(
 
 # ----------------------------------------------------------------------------- defects
 def test_defect_dh_valid_with_large_residual_near_the_shell(st_module: Any) -> None:
-    """Issue #8: InverseKinematik_DH said Valid with a 35-40 mm residual for targets within
+    """Regression: InverseKinematik_DH said Valid with a 35-40 mm residual for targets within
     1e-3 mm of the reach boundary. Sweep 3,000 such targets with both elbows."""
     rng = np.random.default_rng(8)
     fb = st_module.new_fb("InverseKinematik_DH")
@@ -463,7 +463,7 @@ def test_defect_dh_valid_with_large_residual_near_the_shell(st_module: Any) -> N
 
 
 def test_defect_ik_base_never_minus_180(st_module: Any) -> None:
-    """Issue #8: Base came out as -180.0 (header: (-180, 180]) for targets just below the
+    """Regression: Base came out as -180.0 (header: (-180, 180]) for targets just below the
     -X axis, where atan2 rounds to -pi in float32."""
     fb = st_module.new_fb("InverseKinematik_DH")
     for y in (-1.0e-30, -1.0e-20, -1.0e-9, -1.0e-7):
@@ -477,7 +477,7 @@ def test_defect_ik_base_never_minus_180(st_module: Any) -> None:
 
 @pytest.mark.parametrize("name", ["GripperUpDown", "ElbowRotate", "GripperRotate", "Gripper"])
 def test_defect_huge_tool_commands_rejected(st_module: Any, name: str) -> None:
-    """Issue #8: tool commands of 2e6 deg were Valid and gave nonsense. The range is
+    """Regression: tool commands of 2e6 deg were Valid and gave nonsense. The range is
     +/-360 deg; beyond it the target is rejected as 1 Unreachable."""
     for value, want in ((2.0e6, UNREACHABLE), (-361.0, UNREACHABLE), (360.0, NO_ERROR),
                         (-360.0, NO_ERROR)):

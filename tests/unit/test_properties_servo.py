@@ -6,7 +6,7 @@ MG996R data of document 002: a linear map through the two calibration points; th
 datasheet: prescale = round(osc / (4096 f)) - 1, one count = (prescale + 1) / osc). Inputs
 include NaN, +/-Inf, the float32 extremes and the extremes of every integer type.
 
-The calibration bounds (ServoCalibrationCheck) are restated here from issue #8 and the
+The calibration bounds (ServoCalibrationCheck) are restated here from the audit and the
 header, not read from the ST: Direction exactly +1/-1, 500 <= MinPulseUs < MaxPulseUs <= 2500
 us, -90 <= MinAngleDeg < MaxAngleDeg <= 90 deg, |ZeroOffsetDeg| <= 180 deg, scale
 (MaxPulseUs - MinPulseUs) / (MaxAngleDeg - MinAngleDeg) within 5..15 us/deg.
@@ -177,7 +177,7 @@ def test_pulse_to_angle_vs_reference(
 
 
 def test_defect_calibration_bounds_prevent_the_jump_of_issue_8(st_module: Any) -> None:
-    """Issue #8: SetCalibration took 0..20,000 us and +/-1e30 deg; MoveJoints(10, 70, 65)
+    """Regression: SetCalibration took 0..20,000 us and +/-1e30 deg; MoveJoints(10, 70, 65)
     then gave an 11.7 ms pulse. Such a calibration is now refused; the controller's
     defaults (zero offsets 0 / 70 / 65) pass and give in-range pulses."""
     wide = {**DEFAULT_CAL, "MinPulseUs": 0.0, "MaxPulseUs": 20000.0,
