@@ -6,7 +6,7 @@ is up; each prints its scans, commands, worst |step|/limit and |step change|/lim
 and worst Stop-to-rest scans against the bound, and the first violation if any.
 
 Run: PYTHONPATH=sim .venv/bin/python bench/controller_stateful.py [--seconds 300] [--seed 1]
-     [--scans-per-seed 20000] [--check weighted|sum] [--keep-going]
+     [--scans-per-seed 20000] [--check crc|weighted|sum] [--keep-going]
 (--check sum: the old five-DINT check word, for a controller that still expects it.)
 """
 
@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=300.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--scans-per-seed", type=int, default=20_000)
-    ap.add_argument("--check", choices=sorted(CHECK_FORMULAS), default="weighted")
+    ap.add_argument("--check", choices=sorted(CHECK_FORMULAS), default="crc")
     ap.add_argument("--keep-going", action="store_true",
                     help="run each program to its end instead of stopping at a violation")
     args = ap.parse_args(argv)

@@ -52,7 +52,7 @@ COMMAND_FIELDS = (  # (name, type, comment): the MailboxCommand STRUCT, in regis
     ("Arg4", "REAL", "REAL argument 4"),
     ("Arg5", "REAL", "REAL argument 5"),
     ("Arg6", "REAL", "REAL argument 6"),
-    ("Check", "UDINT", "MailboxCheckWord: 1*Seq + 3*Session + ... + 21*Arg6 mod 2^32"),
+    ("Check", "UDINT", "MailboxCheckWord: CRC-32 of the 22 registers before it"),
 )
 ANSWER_FIELDS = (  # (name, internal MailboxState field, type, comment)
     ("Owner", "Owner", "DINT", "session holding the mailbox, 0 = free"),

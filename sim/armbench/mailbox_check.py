@@ -8,12 +8,13 @@ pattern: every NaN counts as 0x7FC00000 and -0.0 as 0x00000000. Everything here 
 
 from __future__ import annotations
 
+import struct
+import zlib
 from collections.abc import Sequence
 
 from .softplc import modbus_map as mm
 
 CANONICAL_NAN = 0x7FC00000
-WEIGHTS = tuple(2 * k - 1 for k in range(1, 12))  # 1, 3, ..., 21: odd, so every word counts
 ARGS = 6
 _MASK = 0xFFFFFFFF
 
@@ -32,7 +33,8 @@ def real_bit_pattern(value: float) -> int:
 
 def check_word(seq: int, session: int, code: int, int1: int = 0, int2: int = 0,
                args: Sequence[float] = ()) -> int:
-    """1*Seq + 3*Session + 5*Code + 7*Int1 + 9*Int2 + 11*Arg1 + ... + 21*Arg6 mod 2^32: each
+    """CRC-32 (zlib's) of Seq, Session, Code, Int1, Int2, Arg1..Arg6 as 44 bytes, each
+    32-bit value most significant byte first, as a function 16 request carries them: each
     DINT as its two's complement pattern, each REAL as :func:`real_bit_pattern` (missing
     arguments are 0.0, as the client writes them)."""
     if len(args) > ARGS:
@@ -40,4 +42,4 @@ def check_word(seq: int, session: int, code: int, int1: int = 0, int2: int = 0,
     reals = [*args, *([0.0] * (ARGS - len(args)))]
     values = [v & _MASK for v in (seq, session, code, int1, int2)]
     values += [real_bit_pattern(float(a)) for a in reals]
-    return sum(w * v for w, v in zip(WEIGHTS, values, strict=True)) & _MASK
+    return zlib.crc32(struct.pack(">11I", *values))

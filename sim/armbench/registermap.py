@@ -257,11 +257,10 @@ def _example(regs: dict[str, Register]) -> list[str]:
         "",
         "(Seq 1, Session 1234, Code 2, Int1 0, Int2 0, Arg1..Arg3 10.0/70.0/65.0 as REALs, "
         "Arg4..Arg6 0.0,",
-        "Check = 1*Seq + 3*Session + 5*Code + 7*Int1 + 9*Int2 + 11*Arg1 + 13*Arg2 + 15*Arg3 "
-        "+ 17*Arg4 + 19*Arg5",
-        "+ 21*Arg6 modulo 2^32, each REAL taken as its IEEE 754 single bit pattern: 1 + 3702 "
-        "+ 10 + 11*0x41200000",
-        f"+ 13*0x428C0000 + 15*0x42820000 = {values['CHECK']} = 0x{values['CHECK']:08X}). "
+        "Check = the CRC-32 (zlib's crc32) of the first 22 of these registers as sent, 44 "
+        "bytes: in Python",
+        f"`zlib.crc32(struct.pack(\">5i6f\", 1, 1234, 2, 0, 0, 10.0, 70.0, 65.0, 0.0, 0.0, 0.0))` "
+        f"= {values['CHECK']} = 0x{values['CHECK']:08X}). "
         f"Then read the 8 registers at {answer.address} (Owner,",
         f"AckSeq, Result, AckCheck) until Owner = 1234, AckSeq = 1 and AckCheck = "
         f"{values['CHECK']}: Result is the command's result.",

@@ -29,7 +29,7 @@ from stepped_controller import (
     OutputMonitor,
     SteppedController,
     StopMonitor,
-    check_weighted,
+    check_crc,
 )
 
 from armbench.softplc.loader import LoadedProgram
@@ -210,7 +210,7 @@ def _wait(rng: random.Random) -> int:
 
 
 def run(program: LoadedProgram, seed: int, *, max_scans: int | None = None,
-        seconds: float | None = None, check_formula: CheckFormula = check_weighted,
+        seconds: float | None = None, check_formula: CheckFormula = check_crc,
         stop_at_first: bool = True) -> FuzzReport:
     """One seeded random program until max_scans scans or `seconds` of wall time (whichever
     comes first), or the first violation when stop_at_first."""

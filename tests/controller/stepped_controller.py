@@ -5,10 +5,10 @@ scan wrote. Blocks written to several mailboxes before one step land in the SAME
 a client over Modbus can only hope for.
 
 The check word of a block is computed here, independently of the client library, by a
-formula the caller picks (:data:`CHECK_FORMULAS`): ``weighted`` is the protocol's new word
-(all eleven fields, weights 1, 3, 5, ... 21), ``sum`` the old five-DINT sum, kept so that
-the non-check defects can be shown on a controller that still expects it
-(``ARMBENCH_CTL_CHECK=sum``).
+formula the caller picks (:data:`CHECK_FORMULAS`): ``crc`` is the protocol's word (zlib's
+CRC-32 of the eleven fields as 44 big-endian bytes); ``weighted`` (weights 1, 3, ..., 21) and
+``sum`` (the five DINTs) are the earlier words, kept so that a defect can be shown on a
+controller that still expects one of them (``ARMBENCH_CTL_CHECK=weighted`` or ``sum``).
 
 Monitors (:class:`OutputMonitor`, :class:`StopMonitor`, :class:`AnswerMonitor`) run after
 every scan and check the promises of the output stage, of Stop and of the mailbox answers;
@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import os
 import struct
+import zlib
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -99,8 +100,17 @@ def _check_pattern(pattern: int) -> int:
     return pattern
 
 
+def check_crc(ints: Sequence[int], args: Sequence[int]) -> int:
+    """The protocol's check word: zlib's CRC-32 of v1..v11 = Seq, Session, Code, Int1, Int2
+    (two's complement) and the six REAL patterns (NaN canonical, -0.0 as 0), each as four
+    bytes, most significant first."""
+    values = [v & _U32 for v in ints] + [_check_pattern(a) for a in args]
+    assert len(values) == 11
+    return zlib.crc32(struct.pack(">11I", *values))
+
+
 def check_weighted(ints: Sequence[int], args: Sequence[int]) -> int:
-    """The new check word: v1..v11 = Seq, Session, Code, Int1, Int2 (two's complement) and
+    """The earlier check word (fooled by a word-level torn write): v1..v11 = Seq, Session, Code, Int1, Int2 (two's complement) and
     the six REAL patterns (NaN canonical, -0.0 as 0); sum of (2k - 1) * v_k mod 2^32."""
     values = [v & _U32 for v in ints] + [_check_pattern(a) for a in args]
     assert len(values) == 11
@@ -115,12 +125,13 @@ def check_sum(ints: Sequence[int], args: Sequence[int]) -> int:
 
 
 CheckFormula = Callable[[Sequence[int], Sequence[int]], int]
-CHECK_FORMULAS: Final[dict[str, CheckFormula]] = {"weighted": check_weighted, "sum": check_sum}
+CHECK_FORMULAS: Final[dict[str, CheckFormula]] = {"crc": check_crc, "weighted": check_weighted,
+                                                   "sum": check_sum}
 
 
 def check_formula_from_env() -> CheckFormula:
-    """The formula named by ARMBENCH_CTL_CHECK (default: the protocol's, weighted)."""
-    name = os.environ.get("ARMBENCH_CTL_CHECK", "weighted")
+    """The formula named by ARMBENCH_CTL_CHECK (default: the protocol's, crc)."""
+    name = os.environ.get("ARMBENCH_CTL_CHECK", "crc")
     if name not in CHECK_FORMULAS:
         raise ValueError(f"ARMBENCH_CTL_CHECK={name!r}: one of {sorted(CHECK_FORMULAS)}")
     return CHECK_FORMULAS[name]
@@ -170,7 +181,7 @@ class SteppedController:
     step); ``scan`` is the number of scans made so far."""
 
     program: LoadedProgram
-    check_formula: CheckFormula = check_weighted
+    check_formula: CheckFormula = check_crc
     plc: SoftPlc = field(init=False)
     now_ns: int = 0
     scan: int = 0
@@ -655,7 +666,9 @@ class StopMonitor:
 @dataclass
 class AnswerMonitor:
     """No answer to the wrong client: whenever a mailbox's answer changes and names an owner,
-    (Owner, AckSeq, AckCheck) is a block that owner wrote into that mailbox."""
+    (Owner, AckSeq, AckCheck) is a block that owner wrote into that mailbox (a 106 BadCheck
+    answer carries the Check as read, which a half-written block may have torn: its
+    (Owner, AckSeq) must be the owner's)."""
 
     violations: list[str] = field(default_factory=list)
     prev: dict[int, Answer] = field(default_factory=dict)
@@ -670,8 +683,14 @@ class AnswerMonitor:
             if a.owner == 0:
                 continue
             self.answers += 1
-            if (a.owner, a.ack_seq, a.ack_check) not in ctl.written.get(mbx, set()) \
-                    and len(self.violations) < 200:
+            written = ctl.written.get(mbx, set())
+            if a.result == BAD_CHECK:
+                # a block read half-written is refused with the Check the PLC read: the
+                # owner's (Session, Seq) is all it must name
+                ok = any((s, q) == (a.owner, a.ack_seq) for s, q, _ in written)
+            else:
+                ok = (a.owner, a.ack_seq, a.ack_check) in written
+            if not ok and len(self.violations) < 200:
                 self.violations.append(
                     f"scan {ctl.scan}, mbx{mbx:02d}: answer owner {a.owner} ack seq "
                     f"{a.ack_seq} ack check {a.ack_check:#010x} result {a.result} is no block "

@@ -9,11 +9,12 @@ A  the output stage: per channel |step| <= Vel*g*dt, |step change| <= Acc*g*dt^2
    and limits change only at rest and never move a servo;
 B  Stop always wins: never refused, the arm at rest within ceil(Vel/(min(Acc,100)*dt)) + 5
    scans, a later Stop brakes at least as hard;
-C  the check word covers the whole block (weights 1, 3, ..., 21; NaN canonical, -0.0 = 0);
+C  the check word covers the whole block (CRC-32 of its 44 bytes; NaN canonical, -0.0 = 0),
+   whatever order its 16-bit registers land in;
 D  absurd motion parameters are refused (8 BadParameter) and publish no NaN.
 
-The check word is the new protocol's unless ARMBENCH_CTL_CHECK=sum (the old five-DINT sum,
-to show the other defects on a controller that still expects it).
+The check word is the protocol's CRC-32 unless ARMBENCH_CTL_CHECK names an earlier one
+(weighted, sum), to show a defect on a controller that still expects it.
 """
 
 from __future__ import annotations
@@ -431,12 +432,6 @@ def test_command_in_the_first_scan_starts_from_the_servo_centre(
         pytest.fail(out.failure(), pytrace=False)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known defect: the weighted sum's low 16 bits depend only on the words' low halves, so a "
-    "block whose new Seq low half and new Check low half have landed, while the arguments "
-    "(which differ in their high halves) are still the old ones, passes the check and runs "
-    "the previous block's arguments (trial 4: base 30 instead of -30). The check word must "
-    "let every register reach both halves (e.g. Fletcher-32 over the 22 registers)"))
 def test_words_in_any_order_run_whole_or_not_at_all(bench: Bench) -> None:
     """A client (or two) writing a block's 16-bit registers one at a time, in any order, with
     scans in between: every taken block runs with exactly its own arguments or is answered

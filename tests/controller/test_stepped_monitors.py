@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import struct
+import zlib
 from collections.abc import Iterator
 
 import pytest
@@ -19,6 +20,7 @@ from stepped_controller import (
     OutputMonitor,
     SteppedController,
     StopMonitor,
+    check_crc,
     check_sum,
     check_weighted,
     load_controller,
@@ -31,22 +33,27 @@ ONE = 0x3F800000  # 1.0f
 
 
 def test_check_word_by_hand() -> None:
-    # Seq 1, Session 2, Code 3, Int1 -1, Int2 5, Arg1 1.0, Arg6 2.0: weights 1, 3, 5, ..., 21
+    # CRC-32 (IEEE 802.3): its standard check value, then the block's 44 bytes spelled out
+    assert zlib.crc32(b"123456789") == 0xCBF43926
     two = struct.unpack("<I", struct.pack("<f", 2.0))[0]
-    expect = (1 * 1 + 3 * 2 + 5 * 3 + 7 * 0xFFFFFFFF + 9 * 5 + 11 * ONE + 21 * two) % 2**32
+    wire = (bytes.fromhex("00000001 00000002 00000003 FFFFFFFF 00000005")
+            + ONE.to_bytes(4, "big") + bytes(16) + two.to_bytes(4, "big"))
     args = [real_bits(1.0), 0, 0, 0, 0, real_bits(2.0)]
-    assert check_weighted((1, 2, 3, -1, 5), args) == expect
+    assert check_crc((1, 2, 3, -1, 5), args) == zlib.crc32(wire)
     assert check_sum((1, 2, 3, -1, 5), args) == (1 + 2 + 3 - 1 + 5) % 2**32
     # every NaN counts as 0x7FC00000 and -0.0 as 0
     nan_a = [real_bits(Bits(0x7FA00001))] + [0] * 5
     nan_b = [real_bits(math.nan)] + [0] * 5
-    assert check_weighted((0, 0, 0, 0, 0), nan_a) == check_weighted((0, 0, 0, 0, 0), nan_b) \
-        == (11 * 0x7FC00000) % 2**32
-    assert check_weighted((0, 0, 0, 0, 0), [real_bits(-0.0)] + [0] * 5) == 0
+    assert check_crc((0, 0, 0, 0, 0), nan_a) == check_crc((0, 0, 0, 0, 0), nan_b) \
+        == zlib.crc32(bytes(20) + bytes.fromhex("7FC00000") + bytes(20))
+    assert check_crc((0, 0, 0, 0, 0), [real_bits(-0.0)] + [0] * 5) == zlib.crc32(bytes(44))
     # an argument change alone changes the word (the old sum does not see it)
     other = [real_bits(1.5), 0, 0, 0, 0, real_bits(2.0)]
-    assert check_weighted((1, 2, 3, -1, 5), other) != expect
+    assert check_crc((1, 2, 3, -1, 5), other) != check_crc((1, 2, 3, -1, 5), args)
     assert check_sum((1, 2, 3, -1, 5), other) == check_sum((1, 2, 3, -1, 5), args)
+    # the weighted sum's weakness: low halves alone decide its low half
+    assert check_weighted((1, 2, 3, -1, 5), other) & 0xFFFF == \
+        check_weighted((1, 2, 3, -1, 5), args) & 0xFFFF
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +68,7 @@ def moving(program: LoadedProgram) -> Iterator[SteppedController]:
     ctl = SteppedController(program, check_sum)
     a = Client(ctl, 1, 77)
     if a.command(HELLO) != 0:  # 106: the controller takes the new word (next Seq)
-        ctl.check_formula = check_weighted
+        ctl.check_formula = check_crc
         assert a.command(HELLO) == 0
     assert a.command(MOVE_JOINTS, args=(0.0, 70.0, 65.0)) == 0
     ctl.step(100)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+import zlib
 from collections.abc import Iterator
 
 import pytest
@@ -55,19 +56,23 @@ def _seq(plc: ArmControllerClient) -> int:
 
 
 def test_check_word_matches_the_documented_formula() -> None:
-    # 1*Seq + 3*Session + 5*Code + 7*Int1 + 9*Int2 + 11*Arg1 + ... + 21*Arg6 modulo 2^32,
-    # negative DINTs as two's complement, REALs as their IEEE 754 single bit patterns
-    assert check_word(1, 1234, 2, 0, 0) == 1 + 3 * 1234 + 5 * 2
-    assert check_word(5, -1, 1, 0, 0) == (5 + 3 * 0xFFFFFFFF + 5) % 2**32
-    assert check_word(0, 0, 0, 1, 1) == 7 + 9
-    assert check_word(1, 1234, 2, 0, 0, (10.0, 70.0, 65.0)) == \
-        (1 + 3702 + 10 + 11 * 0x41200000 + 13 * 0x428C0000 + 15 * 0x42820000) % 2**32
-    assert check_word(0, 0, 0, 0, 0, (0.0,) * 5 + (1.5,)) == (21 * 0x3FC00000) % 2**32
+    # zlib's CRC-32 of the 22 registers before Check as a function 16 request carries them:
+    # 44 bytes, each 32-bit value most significant byte first
+    def wire(*values: int) -> bytes:
+        return b"".join((v & 0xFFFFFFFF).to_bytes(4, "big") for v in values)
+
+    assert check_word(1, 1234, 2, 0, 0) == zlib.crc32(wire(1, 1234, 2, 0, 0) + bytes(24))
+    assert check_word(5, -1, 1, 0, 0) == zlib.crc32(wire(5, 0xFFFFFFFF, 1, 0, 0) + bytes(24))
+    assert check_word(1, 1234, 2, 0, 0, (10.0, 70.0, 65.0)) == zlib.crc32(
+        wire(1, 1234, 2, 0, 0, 0x41200000, 0x428C0000, 0x42820000, 0, 0, 0))
+    assert check_word(1, 1234, 2, 0, 0, (10.0, 70.0, 65.0)) == 0x7E66DC19  # the docs' example
     # the patterns the PLC cannot tell apart by arithmetic: every NaN, and -0.0 as +0.0
-    assert check_word(0, 0, 0, 0, 0, (float("nan"),)) == (11 * 0x7FC00000) % 2**32
-    assert check_word(0, 0, 0, 0, 0, (-0.0,)) == 0
+    assert check_word(0, 0, 0, 0, 0, (float("nan"),)) == zlib.crc32(
+        wire(0, 0, 0, 0, 0, 0x7FC00000, 0, 0, 0, 0, 0))
+    assert check_word(0, 0, 0, 0, 0, (-0.0,)) == zlib.crc32(bytes(44))
     # two arguments swapped, or one argument changed, change the word
     assert check_word(1, 2, 3, 0, 0, (1.0, 2.0)) != check_word(1, 2, 3, 0, 0, (2.0, 1.0))
+    assert check_word(1, 2, 3, 0, 0, (30.0,)) != check_word(1, 2, 3, 0, 0, (-30.0,))
 
 
 def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
@@ -79,15 +84,15 @@ def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
     k = free[0]
     base = controller_map()[f"MBX{k:02d}SEQ"].address
     words = [0x0000, 0x0001, 0x0000, 0x04D2, 0x0000, 0x0002, 0, 0, 0, 0,
-             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x131A, 0x0E81]
+             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x7E66, 0xDC19]
     plc.plc.write_registers(base, words)
     deadline = time.monotonic() + 2.0
     while plc.answer(k).ack_seq != 1 and time.monotonic() < deadline:
         time.sleep(0.002)
     a = plc.answer(k)
-    assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 0x131A0E81)
+    assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 0x7E66DC19)
     assert plc.status().joints_deg == (10.0, 70.0, 65.0)
-    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0x0000, 0x0EA5]
+    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0xC5F0, 0x4463]
     plc.plc.write_registers(base, close)
     while plc.answer(k).owner != 0 and time.monotonic() < deadline + 2.0:
         time.sleep(0.002)
