@@ -110,8 +110,9 @@ def check_crc(ints: Sequence[int], args: Sequence[int]) -> int:
 
 
 def check_weighted(ints: Sequence[int], args: Sequence[int]) -> int:
-    """The earlier check word (fooled by a word-level torn write): v1..v11 = Seq, Session, Code, Int1, Int2 (two's complement) and
-    the six REAL patterns (NaN canonical, -0.0 as 0); sum of (2k - 1) * v_k mod 2^32."""
+    """The earlier check word (fooled by a word-level torn write): v1..v11 = Seq, Session,
+    Code, Int1, Int2 (two's complement) and the six REAL patterns (NaN canonical, -0.0 as
+    0); sum of (2k - 1) * v_k mod 2^32."""
     values = [v & _U32 for v in ints] + [_check_pattern(a) for a in args]
     assert len(values) == 11
     return sum((2 * k + 1) * v for k, v in enumerate(values)) & _U32
