@@ -2,7 +2,7 @@
 larger hypothesis profile than CI's (prints figures, not a test).
 
 Each module runs in its own pytest subprocess (so one slow or crashing module cannot hide the
-others) with HYPOTHESIS_PROFILE set (tests/unit/conftest.py: ``armbench`` = CI's 400
+others) with HYPOTHESIS_PROFILE set (tests/unit/hypothesis_setup.py: ``armbench`` = CI's 400
 examples, ``armbench-thorough`` = 4000, both derandomized) and ``--hypothesis-show-statistics``;
 the report is per module: pass/fail, tests, examples run (the sum of hypothesis's "N passing,
 M failing, K invalid" lines) and wall time. ``--seconds`` is the budget for the whole soak:
@@ -88,7 +88,7 @@ def run_module(path: Path, profile: str, timeout: float) -> ModuleResult:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--profile", default="armbench-thorough",
-                        help="hypothesis profile (tests/unit/conftest.py)")
+                        help="hypothesis profile (tests/unit/hypothesis_setup.py)")
     parser.add_argument("--seconds", type=float, default=3600.0,
                         help="budget of the whole soak, s")
     parser.add_argument("-k", dest="pattern", default="",

@@ -1,9 +1,10 @@
 """Fixtures for the ST block tests: the library st/*.st compiled once per session.
 
-Also the hypothesis profile of the property tests (test_properties_*.py): derandomized and
-without an example database, so that CI runs the same cases every time and never depends on
-a previous run. `HYPOTHESIS_PROFILE=armbench-thorough` runs ten times as many cases (still
-deterministic) for a local soak.
+Also the hypothesis set-up of the property tests (test_properties_*.py and the other users,
+hypothesis_setup.py): derandomized, without an example database and with a fixed constant
+pool, so that CI draws the same cases in every run, whatever the worker split and test order,
+and never depends on a previous run. `HYPOTHESIS_PROFILE=armbench-thorough` runs ten times as
+many cases (still deterministic) for a local soak.
 """
 
 from __future__ import annotations
@@ -19,20 +20,13 @@ REPO = Path(__file__).resolve().parents[2]
 ST_DIR = REPO / "st"
 
 try:
-    from hypothesis import HealthCheck, settings
+    import hypothesis  # noqa: F401
 except ImportError:  # pragma: no cover - the property tests skip themselves
     pass
 else:
-    _COMMON: dict[str, Any] = {
-        "derandomize": True,
-        "database": None,
-        "deadline": None,
-        "print_blob": False,
-        "suppress_health_check": [HealthCheck.too_slow, HealthCheck.filter_too_much],
-    }
-    settings.register_profile("armbench", max_examples=400, **_COMMON)
-    settings.register_profile("armbench-thorough", max_examples=4000, **_COMMON)
-    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "armbench"))
+    from hypothesis_setup import configure
+
+    configure(os.environ.get("HYPOTHESIS_PROFILE", "armbench"))
 
 
 @pytest.fixture(scope="session")
