@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from armbench import registermap
 from armbench.controller_client import MAILBOXES
 
@@ -108,3 +110,49 @@ def test_register_map_doc_lists_every_command() -> None:
     missing = [f"{code} {name}" for name, code in commands.items()
                if not re.search(rf"(?m)^ *{code} {name}\b", text)]
     assert not missing, f"docs/register-map.md does not describe {missing}"
+
+
+def test_every_located_output_is_written_by_one_generated_copy() -> None:
+    """The copy table (armbench.register_copies) is the one place that says what a register
+    shows: the generator refuses a body that writes a register by hand, a register no copy
+    writes, a copy of an undeclared name and a register copied twice."""
+    from armbench import batchgen
+
+    text = batchgen.CONTROLLER.read_text(encoding="utf-8")
+    batchgen.check_copies(text)  # the committed program keeps the rules
+    by_hand = text.replace("  Pwm(StartMailbox := PwmStart, Pulses := Pulses);\n",
+                           "  Pwm(StartMailbox := PwmStart, Pulses := Pulses);\n"
+                           "  ch05off := Pwm.Words[5];\n", 1)
+    assert by_hand != text
+    with pytest.raises(ValueError, match=r"hand-written body .* names the located variable "
+                                         r"Ch05Off \(%QW5\)"):
+        batchgen.check_copies(by_hand)
+    read_by_hand = text.replace("Imu(Run := FALSE, Cmd := Cmd, Raw := ImuRaw, SampleSeq := ImuSeq",
+                                "Imu(Run := FALSE, Cmd := Cmd, Raw := ImuRaw, "
+                                "SampleSeq := ImuSampleSeq", 1)
+    assert read_by_hand != text
+    with pytest.raises(ValueError, match=r"names the located variable ImuSampleSeq \(%IW9\)"):
+        batchgen.check_copies(read_by_hand)
+
+
+def test_the_copy_table_must_cover_the_map(monkeypatch: pytest.MonkeyPatch) -> None:
+    from armbench import batchgen
+    from armbench.register_copies import COPY_OUT
+
+    text = batchgen.CONTROLLER.read_text(encoding="utf-8")
+    title, rows = COPY_OUT[0]
+    assert rows[0][0] == "ScanCount"
+    monkeypatch.setattr(batchgen, "COPY_OUT", ((title, rows[1:]), *COPY_OUT[1:]))
+    with pytest.raises(ValueError, match=r"no copy writes the located output ScanCount \(%MD0\)"):
+        batchgen.check_copies(text)
+    monkeypatch.setattr(batchgen, "COPY_OUT",
+                        ((title, (*rows, ("ScanCounts", "Scans"), ("CtlState", "0"))),
+                         *COPY_OUT[1:]))
+    with pytest.raises(ValueError, match=r"ScanCounts is copied out but not declared"):
+        batchgen.check_copies(text)
+    with pytest.raises(ValueError, match=r"CtlState is copied out twice"):
+        batchgen.check_copies(text)
+    monkeypatch.setattr(batchgen, "COPY_OUT",
+                        ((title, (*rows, ("ImuGyroX", "0"))), *COPY_OUT[1:]))
+    with pytest.raises(ValueError, match=r"ImuGyroX \(%IW0\) is an input"):
+        batchgen.check_copies(text)
