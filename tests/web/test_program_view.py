@@ -27,7 +27,7 @@ import pytest
 from webview_helpers import COUNTER, get, post, serve_program, wait_for
 
 from armbench.demo import RunningPlc
-from armbench.registermap import derive, program_map
+from armbench.registermap import SOURCES, controller_map, program_map
 from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
 from armbench.web.app import WebView, parse_plc_address
@@ -81,12 +81,9 @@ def test_program_map_lists_every_located_variable() -> None:
     assert "not reachable over Modbus" in pm.unreachable[0].reason
     assert {r.name: r.description for r in pm.registers}["Wave"] == "SIN(Scans * 0.1)"
     # the controller's map is the same derivation
-    assert program_map_is_derive()
-
-
-def program_map_is_derive() -> bool:
-    from armbench.registermap import SOURCES
-    return program_map(SOURCES).registers == derive() and not program_map(SOURCES).unreachable
+    controller = program_map(SOURCES)
+    assert controller.registers == list(controller_map().values())
+    assert not controller.unreachable
 
 
 def test_the_view_shows_and_updates_the_programs_variables(view: WebView,
@@ -112,7 +109,7 @@ def test_the_view_shows_and_updates_the_programs_variables(view: WebView,
     assert b["Scans"]["value"] > a["Scans"]["value"]
     assert b["Wave"]["value"] == pytest.approx(wave(b["Scans"]["value"]), abs=1e-6)
     # no commands for a program that is not the arm controller
-    assert get(view, "api/commands") == {"commands": []}
+    assert get(view, "api/commands")["commands"] == []
     status, answer = post(view, {"name": "CmdMoveXyz", "fields": {}})
     assert status == 400 and "not the arm controller" in answer["message"]
 

@@ -41,7 +41,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from ..controller_client import ArmControllerClient, HandshakeError
 from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
 from ..softplc.scan import SoftPlc
-from .commands import BadInput, CommandTable, Outcome, run
+from .commands import GROUPS, BadInput, CommandTable, Outcome, run
 from .monitor import Monitor, Poller, ProgramMonitor, _finite
 from .trace import BadTrace, Trace, parse_since
 from .variables import ProgramVariables, controller_variables
@@ -182,7 +182,7 @@ def make_app(monitor: Poller, commander: Commander | None, trace: Trace) -> Star
 
     async def commands(request: Request) -> Response:
         return JSONResponse({"commands": [] if commander is None
-                             else commander.table.describe()})
+                             else commander.table.describe(), "groups": list(GROUPS)})
 
     async def trace_get(request: Request) -> Response:
         try:
