@@ -31,7 +31,7 @@ from armbench.registermap import SOURCES, controller_map, program_map
 from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
 from armbench.web.app import WebView, parse_plc_address
-from armbench.web.trace import MAX_VARIABLES
+from armbench.web.trace import MAX_VARIABLES, Trace
 from armbench.web.variables import program_variables
 
 # name: (location, Modbus table, first address, count) by OpenPLC v3's map: %QX/%IX bits
@@ -316,3 +316,29 @@ def test_cli_web_usage_errors(argv: list[str], option: str,
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and option in err[0], err
+
+
+def test_trace_ring_and_idle_pause(counter: RunningPlc) -> None:
+    """The ring keeps the newest samples (a page that fell behind is told how many it lost),
+    and nobody fetching for idle_s pauses the sampling until the next fetch."""
+    program = program_variables([COUNTER], "counter.st")
+    trace = Trace(counter.host, counter.port, program, min_period_s=0.002, keep=100,
+                  idle_s=0.5)
+    trace.start()
+    try:
+        trace.configure(["Scans"])
+        wait_for(lambda: trace.samples(0)["samples"][-1:] != []
+                 and trace.samples(0)["samples"][0][0] > 150, "the ring to overflow")
+        got = trace.samples(1)
+        assert got["lost"] == got["samples"][0][0] - 2 and len(got["samples"]) <= 125
+        seqs = [s[0] for s in got["samples"]]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+        time.sleep(1.0)  # no fetch: idle after 0.5 s
+        last = trace.samples(0)  # this fetch wakes it
+        assert last["idle"] is True
+        t_last = last["samples"][-1][1]
+        assert time.time() - t_last > 0.3  # nothing sampled for the last half second or so
+        wait_for(lambda: trace.samples(0)["samples"][-1][1] > t_last + 0.1, "sampling again")
+        assert trace.samples(0)["idle"] is False
+    finally:
+        trace.stop()

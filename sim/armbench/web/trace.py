@@ -65,7 +65,10 @@ class Trace:
         self.program = program
         self.min_period_s = min_period_s
         self.idle_s = idle_s
-        self._samples: deque[tuple[Any, ...]] = deque(maxlen=keep)
+        self.keep = keep
+        # (seq, time, values...), seq contiguous: a list trimmed in chunks, so that a page's
+        # "since" is an index, not a scan of the ring
+        self._samples: list[tuple[Any, ...]] = []
         self._seq = 0
         self._config = _Config(0, (), ReadPlan(()))
         self._cond = threading.Condition()
@@ -117,22 +120,24 @@ class Trace:
 
     def samples(self, since: int = 0, config: int | None = None) -> dict[str, Any]:
         """Samples after sequence number ``since`` (at most :data:`SAMPLES_PER_ANSWER`):
-        rows of [seq, time s, value...]; ``lost`` counts those already dropped from the ring.
-        A ``config`` other than the current one starts from the beginning."""
+        rows of [seq, time s, value...]; ``lost`` counts those already dropped from the ring;
+        ``idle`` says the sampling was paused for want of fetches (this one resumes it). A
+        ``config`` other than the current one starts from the beginning."""
         with self._cond:
+            idle = self._idle()  # was: this fetch resumes it
             self._last_fetch = time.monotonic()
-            self._cond.notify_all()  # an idle trace resumes
+            self._cond.notify_all()
             c = self._config
             if config is not None and config != c.number:
                 since = 0
-            rows = [s for s in self._samples if s[0] > since]
             first = self._samples[0][0] if self._samples else self._seq + 1
+            start = max(0, since - first + 1)
+            rows = self._samples[start:start + SAMPLES_PER_ANSWER]
             lost = max(0, first - since - 1) if since and self._samples else 0
-            more = len(rows) > SAMPLES_PER_ANSWER
-            rows = rows[:SAMPLES_PER_ANSWER]
+            more = start + len(rows) < len(self._samples)
             return {**self.describe(), "samples": rows, "lost": lost, "more": more,
                     "rate_hz": self._rate(), "read_ms": self._read_ms(),
-                    "error": self.error, "idle": self._idle()}
+                    "error": self.error, "idle": idle}
 
     def csv(self) -> str:
         """The ring as CSV: time since the first sample (s), wall-clock time, one column per
@@ -200,6 +205,8 @@ class Trace:
                     if c is self._config:  # not reconfigured while reading
                         self._seq += 1
                         self._samples.append((self._seq, (t0 + t1) / 2.0, *values))
+                        if len(self._samples) > self.keep + self.keep // 4:
+                            del self._samples[:len(self._samples) - self.keep]
                         self._times.append(time.monotonic())
                         self._read_s.append(t1 - t0)
                 next_t = max(next_t + self.min_period_s, time.monotonic())

@@ -41,7 +41,7 @@ class ProgramVariables:
 
 def controller_variables() -> ProgramVariables:
     """The packaged arm controller's map (what ``serve --web`` runs without files)."""
-    return ProgramVariables("arm controller (Controller.st)",
+    return ProgramVariables("arm controller",
                             tuple(controller_map().values()), (), True)
 
 

@@ -220,7 +220,7 @@ function updateFaults(s) {
 }
 
 function updateHeader(s) {
-  $("plcaddr").textContent = "Modbus " + s.plc_address;
+  $("plcaddr").textContent = s.plc_address;
   $("progname").textContent = s.program || "";
   const plc = s.plc;
   const st = $("plcstate");
@@ -433,7 +433,7 @@ async function start() {
   const controller = info.mode === "controller";
   for (const e of document.querySelectorAll(".ctl-only")) e.hidden = !controller;
   $("progname").textContent = info.program;
-  $("plcaddr").textContent = "Modbus " + info.plc_address;
+  $("plcaddr").textContent = info.plc_address;
   $("unreachable").textContent = info.unreachable.length ? "Not reachable over Modbus (OpenPLC maps no " +
     "Modbus address to them): " + info.unreachable.map((u) => `${u.name} (${u.location})`).join(", ") : "";
   showView(location.hash.slice(1) || (controller ? "arm" : "variables"));
