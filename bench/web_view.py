@@ -4,14 +4,16 @@ Starts the soft PLC with the packaged controller (10 ms task, real time), the li
 (`armbench serve --web`'s server) on free loopback ports, and Debian's chromium headless
 through Playwright. Another Modbus client then sends MoveJoints commands to alternating
 targets; for each, the latency runs from just before its FC16 write (wall clock) to the first
-frame the page drew with the new PLC joints (the page's own clock, performance.timeOrigin +
-performance.now(): the same machine's wall clock), split at the server's read of the PLC that
-first saw them. The update rate is frames drawn per second, counted in the page over a few
-seconds. A Python WebSocket client then reads the same stream for as long: how fast the server
-alone delivers (its share of the latency). Each configured rate (--rates) is measured in the
-same run. Prints figures; not a
-test. With --screenshot PATH it also saves a picture of the page after a short drive (the one
-in docs/web-view.md comes from `--screenshot docs/figures/web-view.png`).
+frame the page drew with the new joint-move target (BaseDeg.., which the PLC sets in the scan
+that takes the command; the drawn output stage then follows the motion), on the page's own
+clock (performance.timeOrigin + performance.now(): the same machine's wall clock), split at
+the server's read of the PLC that first saw it. The update rate is frames drawn per second,
+counted in the page over a few seconds. A Python WebSocket client then reads the same stream
+for as long: how fast the server alone delivers (its share of the latency). Each configured
+rate (--rates) is measured in the same run. Prints figures; not a test. With --screenshot PATH
+it also saves a picture of the page after a short drive, and with --trace-screenshot PATH one
+of the trace panel over that drive (docs/web-view.md's come from `--screenshot
+docs/figures/web-view.png --trace-screenshot docs/figures/web-trace.png`).
 
     .venv/bin/python bench/web_view.py [--rates 20 50 100] [--samples 40] [--seconds 5]
 """
@@ -42,11 +44,12 @@ from armbench.softplc.modbus_client import PlcClient
 from armbench.web.app import WebView
 
 TARGETS = ((10.0, 70.0, 65.0), (-15.0, 60.0, 80.0))
+TRACED = ("OutBaseDeg", "OutShoulderDeg", "OutElbowDeg", "MotionKind", "MotionProgress")
 
 FIND_FIRST = """([target, after]) => {
   const h = window.armbench.history;
   for (const d of h) {
-    if (d.at >= after && d.plc && d.plc.every((v, i) => Math.abs(v - target[i]) < 1e-3))
+    if (d.at >= after && d.target && d.target.every((v, i) => Math.abs(v - target[i]) < 1e-3))
       return d;
   }
   return null;
@@ -100,26 +103,46 @@ def server_side(web: WebView, seconds: float) -> dict[str, float]:
             "ws_p95": pct(lat, 95)}
 
 
-def screenshot(page: Page, ctl: ArmControllerClient, web: WebView, path: Path) -> None:
-    page.goto(web.url)
-    page.wait_for_function("window.armbench.frames > 5", timeout=20000)
+def screenshot(page: Page, ctl: ArmControllerClient, web: WebView, path: Path,
+               trace_path: Path | None) -> None:
+    """The arm view after a drive by another client and a command the PLC rejects; with
+    ``trace_path`` also the trace panel of the output stage over the same drive."""
+    page.goto(web.url + "#arm")
+    page.wait_for_function("window.armbench.frames > 5 && "
+                           "document.querySelector('#cmdtabs button') !== null", timeout=20000)
+    page.click("#cmdtabs button[data-group=Setup]")
     page.click("form[data-command=CmdInitPwm] button")
     page.wait_for_function("window.armbench.lastResult && window.armbench.lastResult.ok")
-    for p in circle(48, (150.0, 0.0, 120.0), 40.0, "xy"):
+    page.click("#views button[data-view=trace]")
+    page.wait_for_function("document.querySelector('#trace-vars input') !== null")
+    for name in TRACED:
+        page.check(f"#trace-vars input[value={name}]")
+    page.select_option("#trace-window", "10")
+    page.click("#views button[data-view=arm]")
+    page.click("#cmdtabs button[data-group=Move]")
+    ctl.move_joints(0.0, 70.0, 65.0, wait=True)
+    for p in circle(24, (150.0, 0.0, 120.0), 40.0, "xy"):
         ctl.move_xyz(*p)
         time.sleep(0.06)
-    ctl.move_xyz(170.0, 30.0, 110.0)
+    ctl.move_linear((170.0, 30.0, 110.0), 60.0, 300.0, wait=True)
     form = "form[data-command=CmdMoveXyz]"
     page.fill(f"{form} input[name=x]", "400")
     page.fill(f"{form} input[name=z]", "0")
     page.click(f"{form} button")
-    page.wait_for_function("document.getElementById('cmdmsg').className === 'error'")
+    page.wait_for_function("document.getElementById('lastcmd').className === 'error'")
     page.fill(f"{form} input[name=x]", "150")
     page.fill(f"{form} input[name=z]", "120")
     time.sleep(1.5)
     page.evaluate("window.scrollTo(0, 0)")  # fill() scrolled the form into view
     path.parent.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(path))
+    if trace_path is not None:
+        page.click("#views button[data-view=trace]")
+        page.wait_for_function("+document.getElementById('trace-plot').dataset.drawn > 0")
+        page.click("#trace-pause")
+        time.sleep(0.3)
+        trace_path.parent.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(trace_path))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,6 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=40, help="writes timed per rate (40)")
     ap.add_argument("--seconds", type=float, default=5.0, help="frame count window (5 s)")
     ap.add_argument("--screenshot", type=Path, default=None, help="save a screenshot here")
+    ap.add_argument("--trace-screenshot", type=Path, default=None,
+                    help="with --screenshot: save one of the trace panel here")
     a = ap.parse_args(argv)
     chromium = shutil.which("chromium")
     if chromium is None:
@@ -151,8 +176,10 @@ def main(argv: list[str] | None = None) -> int:
             if a.screenshot is not None:
                 with WebView(running.host, running.port, web_port=0,
                              local_plc=running.plc) as web:
-                    screenshot(page, ctl, web, a.screenshot)
+                    screenshot(page, ctl, web, a.screenshot, a.trace_screenshot)
                 print(f"screenshot: {a.screenshot}")
+                if a.trace_screenshot is not None:
+                    print(f"screenshot: {a.trace_screenshot}")
         browser.close()
         stats = next(iter(_stats(running).values()))
     load = os.getloadavg()

@@ -1,4 +1,4 @@
-"""armbench command line: check, build, run, serve, export, demo, demo-imu.
+"""armbench command line: check, build, run, serve, web, export, demo, demo-imu.
 
 Programs are compiled with the armbench ST library (armbench.locate) unless --no-library.
 Exit codes: 0 ok, 1 diagnostics or fault, 2 usage (one line on stderr).
@@ -39,6 +39,7 @@ if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
     from .softplc.modbus_server import ModbusServer
     from .softplc.scan import SoftPlc
     from .web.app import WebView
+    from .web.variables import ProgramVariables
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
@@ -175,8 +176,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
     from .softplc.scan import SoftPlc
 
-    # Without files: the armbench library and the controller (what --web knows how to show).
-    prog = load_program(_files(args) if args.files else default_project().sources())
+    # Without files: the armbench library and the controller.
+    files = _files(args) if args.files else None
+    prog = load_program(files or default_project().sources())
     plc = SoftPlc(prog)
     server = ModbusServer(
         prog.image, plc.lock, host=args.host, port=args.port,
@@ -189,13 +191,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
     server_log = logging.getLogger(ModbusServer.__module__)
     server_log.addHandler(to_stderr)
     try:
-        return _serve(args, prog, plc, server)
+        return _serve(args, prog, plc, server, files)
     finally:
         server_log.removeHandler(to_stderr)
 
 
 def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
-           server: ModbusServer) -> int:
+           server: ModbusServer, files: list[Path] | None) -> int:
     try:
         server.start()
     except OSError as exc:
@@ -209,7 +211,7 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
           flush=True)
     web = None
     if args.web:
-        web = _start_web(args, plc, server)
+        web = _start_web(args, plc, server, _web_program(args, files))
         if web is None:
             plc.stop()
             server.stop()
@@ -233,17 +235,36 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
     return EXIT_FAIL if plc.fault is not None else EXIT_OK
 
 
-def _start_web(args: argparse.Namespace, plc: SoftPlc, server: ModbusServer) -> WebView | None:
-    """The live view, a Modbus client of the server just started (None: could not listen)."""
+def _web_program(args: argparse.Namespace, files: list[Path] | None) -> ProgramVariables:
+    """The located variables the live view shows: of ``files`` (the program and the library
+    files it was compiled with), or the packaged controller's map."""
+    from .web.variables import controller_variables, program_variables
+
+    if not files:
+        return controller_variables()
+    return program_variables(files, ", ".join(Path(f).name for f in _given(args.files)))
+
+
+def _start_web(args: argparse.Namespace, plc: SoftPlc | None, server: ModbusServer | None,
+               program: ProgramVariables, plc_address: tuple[str, int] | None = None
+               ) -> WebView | None:
+    """The live view, a Modbus client of the server just started or of the PLC at
+    ``plc_address`` (None: could not listen)."""
     from .web.app import WebView, exposure_warning
 
-    # The view talks to the PLC like any client: over Modbus, on the loopback when the
-    # server listens on every address.
-    plc_host = "127.0.0.1" if args.host in ("0.0.0.0", "") else "::1" if args.host == "::" \
-        else args.host
+    if plc_address is not None:
+        plc_host, plc_port = plc_address
+    else:
+        assert server is not None
+        # The view talks to the PLC like any client: over Modbus, on the loopback when the
+        # server listens on every address.
+        plc_host = "127.0.0.1" if args.host in ("0.0.0.0", "") else "::1" \
+            if args.host == "::" else args.host
+        plc_port = server.port
     try:
-        web = WebView(plc_host, server.port, web_host=args.web_host, web_port=args.web_port,
-                      rate_hz=args.web_rate, local_plc=plc)
+        web = WebView(plc_host, plc_port, program=program, web_host=args.web_host,
+                      web_port=args.web_port, rate_hz=args.web_rate,
+                      trace_period_s=args.trace_period / 1e3, local_plc=plc)
     except OSError as exc:
         print(f"armbench: error: cannot listen on {args.web_host}:{args.web_port} for the "
               f"web view: {exc.strerror}", file=sys.stderr)
@@ -252,8 +273,51 @@ def _start_web(args: argparse.Namespace, plc: SoftPlc, server: ModbusServer) -> 
     if warning is not None:
         print(f"armbench: warning: {warning}", file=sys.stderr)
     web.start()
-    print(f"live view on {web.url} (updates at {args.web_rate:g} Hz)", flush=True)
+    what = "the arm controller" if program.is_controller else \
+        f"{program.name}, {len(program.registers)} located variables"
+    print(f"live view on {web.url} (updates at {web.monitor.rate_hz:g} Hz) of "
+          f"{plc_host}:{plc_port}: {what}", flush=True)
     return web
+
+
+def cmd_web(args: argparse.Namespace) -> int:
+    """The live view of a PLC that runs elsewhere (a soft PLC, OpenPLC), over Modbus."""
+    program = _web_program(args, _files(args) if args.files else None)
+    web = _start_web(args, None, None, program, args.plc)
+    if web is None:
+        return EXIT_FAIL
+    deadline = None if args.duration is None else time.monotonic() + args.duration
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        web.stop()
+    return EXIT_OK
+
+
+def _plc_address(text: str) -> tuple[str, int]:
+    from .web.app import parse_plc_address
+
+    try:
+        return parse_plc_address(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _web_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--web-host", default="127.0.0.1", help="address of the live view "
+                   "(127.0.0.1)")
+    p.add_argument("--web-port", type=argtypes.port, default=8080,
+                   help="port of the live view, 0..65535 (8080; 0: any)")
+    p.add_argument("--web-rate", type=argtypes.update_rate, default=50.0, metavar="HZ",
+                   help="updates per second of the live view, 1..1000 (50; 10 at most for "
+                   "a program other than the arm controller)")
+    p.add_argument("--trace-period", type=argtypes.float_between(0.0, 10000.0, "ms"),
+                   default=1.0, metavar="MS", help="shortest time between two trace "
+                   "samples, 0..10000 ms (1: as fast as the PLC answers, at most 1000 "
+                   "samples/s; give the PLC's scan time to spare a busy PLC)")
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -342,15 +406,25 @@ def make_parser() -> argparse.ArgumentParser:
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")
     s.add_argument("--web", action="store_true",
-                   help="also serve the live view (arm in 3-D, registers, commands) over HTTP; "
-                   "it is a Modbus client of this PLC and knows the controller's register map")
-    s.add_argument("--web-host", default="127.0.0.1", help="address of the live view "
-                   "(127.0.0.1)")
-    s.add_argument("--web-port", type=argtypes.port, default=8080,
-                   help="port of the live view, 0..65535 (8080; 0: any)")
-    s.add_argument("--web-rate", type=argtypes.update_rate, default=50.0, metavar="HZ",
-                   help="updates per second of the live view, 1..1000 (50)")
+                   help="also serve the live view over HTTP (the program's located variables "
+                   "and a trace; for the arm controller the arm in 3-D and its commands); it "
+                   "is a Modbus client of this PLC")
+    _web_options(s)
     s.set_defaults(func=cmd_serve)
+    w = sub.add_parser("web", help="the live view of a PLC at an address (soft PLC, OpenPLC): "
+                       "located variables, trace, and for the arm controller the arm and its "
+                       "commands")
+    w.add_argument("--plc", type=_plc_address, required=True, metavar="HOST:PORT",
+                   help="the PLC's Modbus TCP address (port 502 when left out)")
+    w.add_argument("--program", dest="files", nargs="+", action="extend", default=[],
+                   metavar="FILE", help=".st files or folders of the program the PLC runs "
+                   "(default: the armbench arm controller); compiled with the armbench "
+                   "library unless --no-library, as for `armbench serve`")
+    _library_option(w)
+    _web_options(w)
+    w.add_argument("--duration", type=argtypes.seconds, default=None,
+                   help="stop after S seconds")
+    w.set_defaults(func=cmd_web)
     x = sub.add_parser("export", help="write the OpenPLC upload .st and PLCopen XML of a "
                        "program (with the library) into --out, or regenerate the "
                        "repository's own plc_project/ exports")

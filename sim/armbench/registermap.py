@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -20,7 +20,7 @@ from pathlib import Path
 from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
-from .compiler.symbols import CheckedProgram, InstanceModel, PouSym
+from .compiler.symbols import CheckedProgram, InstanceModel, PouSym, VarSym
 from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
@@ -133,18 +133,72 @@ def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -
 
 
 def _registers(inst: InstanceModel) -> list[Register]:
+    regs, _ = _located(inst.pou.vars.values(), strict=True)
+    return regs
+
+
+@dataclass(frozen=True)
+class Unreachable:
+    """A located variable OpenPLC's Modbus map does not cover (e.g. ``%MX``)."""
+
+    name: str
+    st_type: str
+    location: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class ProgramMap:
+    """Every located variable of a program: those a Modbus client reaches, and the rest."""
+
+    registers: list[Register]
+    unreachable: list[Unreachable]
+
+
+def program_map(paths: Sequence[str | Path]) -> ProgramMap:
+    """The located variables of any program's CONFIGURATION: its VAR_GLOBALs, then each
+    program instance's, in declaration order (an instance of a program already listed adds
+    nothing: its variables sit at the same addresses). Unlike :func:`derive`, a variable
+    outside OpenPLC's Modbus map is listed in ``unreachable`` instead of failing the whole
+    program. Raises CompileFailed when the sources do not check."""
+    prog, diags = analyse(list(paths))
+    if prog is None:
+        raise CompileFailed(diags.sorted())
+    if prog.config is None or not prog.config.instances:
+        raise ValueError("the sources have no CONFIGURATION with a program instance")
+    seen: set[str] = set()
+    variables: list[VarSym] = list(prog.config.globals.values())
+    for inst in prog.config.instances:
+        if inst.pou.name.upper() not in seen:
+            seen.add(inst.pou.name.upper())
+            variables += inst.pou.vars.values()
+    regs, unreachable = _located(variables, strict=False)
+    return ProgramMap(regs, unreachable)
+
+
+def _located(variables: Iterable[VarSym],
+             strict: bool) -> tuple[list[Register], list[Unreachable]]:
     sources: dict[str, list[str]] = {}
     regs: list[Register] = []
-    for var in inst.pou.vars.values():
+    unreachable: list[Unreachable] = []
+    for var in variables:
         if var.address is None:
             continue
+        try:
+            table, address, count = modbus_location(var.address)
+        except ValueError as exc:
+            if strict:
+                raise
+            unreachable.append(Unreachable(var.name, str(var.type), var.address.upper(),
+                                           str(exc)))
+            continue
         if var.pos.file not in sources:
-            sources[var.pos.file] = Path(var.pos.file).read_text(encoding="utf-8").splitlines()
+            sources[var.pos.file] = Path(var.pos.file).read_text(
+                encoding="utf-8", errors="replace").splitlines()
         group, description = _group_and_comment(sources[var.pos.file], var.pos.line)
-        table, address, count = modbus_location(var.address)
         regs.append(Register(var.name, str(var.type), var.address.upper(), table, address,
                              count, group, description))
-    return regs
+    return regs, unreachable
 
 
 def constants(paths: Sequence[str | Path] = SOURCES,

@@ -385,3 +385,45 @@ def test_wrist_jog_and_gripper_from_the_page(web: WebView, running: RunningPlc,
     assert read(running, "GripperOpeningPct") == 30.0
     status, answer = post(web, {"name": "CmdSetGripper", "fields": {"opening": "wide"}})
     assert status == 400 and "Opening" in answer["message"], answer
+
+
+JOINT_NAMES = ("Base", "Shoulder", "Elbow")
+
+
+def _drawn_is_the_output_stage(web: WebView, running: RunningPlc) -> bool:
+    """The view's arm (joints and drawn points) is the output stage's angles, read here by
+    a client of our own, and its tool point is the reference FK of those angles."""
+    out = [read(running, f"Out{j}Deg") for j in JOINT_NAMES]
+    s = get(web, "api/state")
+    return (s["joints"]["plc"] == pytest.approx(out, abs=1e-4)
+            and s["points"]["plc"][3] == pytest.approx(arm.forward(*out), abs=1e-3)
+            and s["tool"]["output"] == pytest.approx(arm.forward(*out), abs=1e-3))
+
+
+def test_drawn_arm_is_what_the_servos_get_for_every_motion_kind(
+        web: WebView, running: RunningPlc, other: ArmControllerClient) -> None:
+    """After a straight line, a jog and a profiled joint move the arm the view draws is the
+    output stage (OutBaseDeg..), whose tool point is the line's target by the reference IK:
+    BaseDeg.. hold the last *joint* move's target only and stay behind."""
+    k = controller_constants()
+    assert other.move_joints(0.0, 70.0, 65.0).error_id == 0
+    other.wait_motion()
+    target = (165.0, -35.0, 105.0)
+    assert other.move_linear(target, 80.0, 400.0, wait=True).error_id == 0
+    assert read(running, "MotionKind") == k["KindLine"]
+    expected = arm.inverse(*target, elbow_up=True)
+    wait_for(lambda: _drawn_is_the_output_stage(web, running), "the line's end drawn")
+    s = get(web, "api/state")
+    assert s["joints"]["plc"] == pytest.approx(expected, abs=1e-2)
+    assert s["tool"]["output"] == pytest.approx(target, abs=0.05)
+    assert [read(running, f"{j}Deg") for j in JOINT_NAMES] == pytest.approx([0, 70, 65])
+
+    assert other.jog_start((0.0, 0.0, 0.4), 30.0, 300.0).error_id == 0
+    wait_for(lambda: read(running, "MotionBusy") == 0, "the jog's dead-man stop")
+    wait_for(lambda: _drawn_is_the_output_stage(web, running), "the jog's end drawn")
+    assert get(web, "api/state")["tool"]["output"][2] > target[2] + 1.0  # it went up
+
+    assert other.move_joints_profile((20.0, 75.0, 90.0), 2, 60.0, 300.0,
+                                     wait=True).error_id == 0
+    wait_for(lambda: _drawn_is_the_output_stage(web, running), "the joint move drawn")
+    assert get(web, "api/state")["joints"]["plc"] == pytest.approx([20, 75, 90], abs=1e-3)

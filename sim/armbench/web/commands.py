@@ -32,6 +32,8 @@ DINT_MIN, DINT_MAX = -(2**31), 2**31 - 1
 # A REAL argument beyond this cannot be a length, angle or pulse width the controller can use;
 # the float32 encoder would overflow to inf near 3.4e38 anyway.
 REAL_LIMIT = 1.0e9
+# The page's command tabs, in this order.
+GROUPS = ("Move", "Jog", "5-axis", "Setup", "Batch")
 
 
 class BadInput(ValueError):
@@ -68,8 +70,11 @@ class CommandSpec:
     help: str
     fields: tuple[Field, ...] = ()
     batch: bool = False  # SolveBatch: reserve the buffer, write targets, solve, read, release
+    group: str = "Move"  # the page's tab (one of GROUPS); "" = above the tabs, always shown
 
     def __post_init__(self) -> None:
+        if self.group not in ("", *GROUPS):
+            raise ValueError(f"{self.constant}: group {self.group!r} is not one of {GROUPS}")
         slots = [f.slot for f in self.fields]
         if len(set(slots)) != len(slots):
             raise ValueError(f"{self.constant}: two fields fill the same slot")
@@ -104,13 +109,17 @@ COMMANDS: tuple[CommandSpec, ...] = (
                 (Field("x", "X", "Arg1", default=150.0, unit="mm"),
                  Field("y", "Y", "Arg2", default=0.0, unit="mm"),
                  Field("z", "Z", "Arg3", default=120.0, unit="mm"),
-                 Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW))),
+                 Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW)),
+                group="Move"),
     CommandSpec("CmdMoveJoints", "Move joints", "Base/Shoulder/Elbow angles directly.",
                 (Field("base", "Base", "Arg1", default=0.0, unit="deg"),
                  Field("shoulder", "Shoulder", "Arg2", default=70.0, unit="deg"),
-                 Field("elbow", "Elbow", "Arg3", default=65.0, unit="deg"))),
-    CommandSpec("CmdInitPwm", "Init PWM", "PCA9685 initialisation for 50 Hz (several scans)."),
-    CommandSpec("CmdRelax", "Relax", "All channels fully off: the servos go limp."),
+                 Field("elbow", "Elbow", "Arg3", default=65.0, unit="deg")),
+                group="Move"),
+    CommandSpec("CmdInitPwm", "Init PWM", "PCA9685 initialisation for 50 Hz (several scans).",
+                group="Setup"),
+    CommandSpec("CmdRelax", "Relax", "All channels fully off: the servos go limp.",
+                group="Setup"),
     CommandSpec("CmdSetCalibration", "Set calibration",
                 "A joint's servo calibration (checked by the PLC; applies from the next move).",
                 (Field("joint", "Joint", "Int1", "choice", 0, choices=_ALL_JOINTS),
@@ -120,14 +129,16 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("min_pulse", "Min pulse", "Arg2", default=1000.0, unit="us"),
                  Field("max_pulse", "Max pulse", "Arg3", default=2000.0, unit="us"),
                  Field("min_angle", "Min angle", "Arg4", default=-60.0, unit="deg"),
-                 Field("max_angle", "Max angle", "Arg5", default=60.0, unit="deg"))),
+                 Field("max_angle", "Max angle", "Arg5", default=60.0, unit="deg")),
+                group="Setup"),
     CommandSpec("CmdSolveBatch", "Solve batch",
                 "IK + FK echo of up to 32 points in one scan (one 'x y z' per line); the servos "
                 "do not move.",
                 (Field("points", "Points (x y z per line, mm)", "points", "points",
                        "150 0 120\n160 20 110\n400 0 0"),
                  Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW)),
-                batch=True),
+                batch=True,
+                group="Batch"),
     CommandSpec("CmdMoveJointsProfile", "Joint move (profile)",
                 "A joint move with a chosen profile through the motion layer; the servos "
                 "follow scan by scan.",
@@ -138,7 +149,8 @@ COMMANDS: tuple[CommandSpec, ...] = (
                        choices=_PROFILES),
                  Field("speed", "Speed", "Arg4", default=60.0, unit="deg/s"),
                  Field("accel", "Acceleration", "Arg5", default=300.0, unit="deg/s^2"),
-                 Field("jerk", "Jerk", "Arg6", default=3000.0, unit="deg/s^3"))),
+                 Field("jerk", "Jerk", "Arg6", default=3000.0, unit="deg/s^3")),
+                group="Move"),
     CommandSpec("CmdMoveLinear", "Straight line",
                 "A Cartesian straight line to X/Y/Z (document 001's Bresenham, with or without "
                 "its start compensation, or the time-scaled path).",
@@ -149,7 +161,8 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("accel", "Acceleration", "Arg5", default=200.0, unit="mm/s^2"),
                  Field("fineness", "Fineness", "Arg6", default=2.0, unit="steps/mm"),
                  Field("method", "Method", "Int1", "choice", 2, choices=_LINE_METHODS),
-                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW))),
+                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW)),
+                group="Move"),
     CommandSpec("CmdJogStart", "Jog",
                 "Cartesian jog along the stick vector (-1..+1 per axis). Dead-man: it brakes "
                 "by itself 0.5 s after the last Jog/Jog update.",
@@ -158,21 +171,26 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("sz", "Stick Z", "Arg3", default=0.0),
                  Field("speed", "Max speed", "Arg4", default=30.0, unit="mm/s"),
                  Field("accel", "Acceleration", "Arg5", default=200.0, unit="mm/s^2"),
-                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW))),
+                 Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW)),
+                group="Jog"),
     CommandSpec("CmdJogUpdate", "Jog update", "New stick values for the running jog.",
                 (Field("sx", "Stick X", "Arg1", default=0.5),
                  Field("sy", "Stick Y", "Arg2", default=0.0),
-                 Field("sz", "Stick Z", "Arg3", default=0.0))),
-    CommandSpec("CmdJogStop", "Jog stop", "The jog brakes to a stop."),
+                 Field("sz", "Stick Z", "Arg3", default=0.0)),
+                group="Jog"),
+    CommandSpec("CmdJogStop", "Jog stop", "The jog brakes to a stop.",
+                group="Jog"),
     CommandSpec("CmdStop", "Stop", "Any motion brakes to standstill within the limits.",
                 (Field("decel", "Deceleration (0 = limits)", "Arg1", default=0.0,
-                       unit="deg/s^2"),)),
+                       unit="deg/s^2"),),
+                group=""),
     CommandSpec("CmdSetMotionLimits", "Motion limits",
                 "A joint's speed and acceleration limits (motion blocks and output stage).",
                 (Field("joint", "Joint", "Int1", "choice", 0, choices=_ALL_JOINTS),
                  Field("speed", "Speed limit", "Arg1", default=150.0, unit="deg/s"),
                  Field("accel", "Acceleration limit", "Arg2", default=1000.0,
-                       unit="deg/s^2"))),
+                       unit="deg/s^2")),
+                group="Setup"),
     CommandSpec("CmdMoveToolAngles", "Tool pose (pitch/roll)",
                 "5-axis arm: tool position plus pitch and roll (document 000), tip-fixed or "
                 "flange-fixed; a synchronised joint move of all five joints.",
@@ -181,7 +199,8 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("z", "Z", "Arg3", default=80.0, unit="mm"),
                  Field("pitch", "Pitch", "Arg4", default=-30.0, unit="deg"),
                  Field("roll", "Roll", "Arg5", default=0.0, unit="deg"),
-                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES))),
+                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES)),
+                group="5-axis"),
     CommandSpec("CmdMoveToolVector", "Tool pose (direction)",
                 "5-axis arm: tool position plus a tool direction in the arm plane (document "
                 "004) and the roll in 0.01 deg.",
@@ -193,7 +212,8 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("dz", "Direction Z", "Arg6", default=-0.5),
                  Field("roll", "Roll", "Int2", "int", 0, unit="0.01 deg", low=-36000,
                        high=36000),
-                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES))),
+                 Field("mode", "Elbow / mode", "Int1", "choice", 0, choices=_TOOL_MODES)),
+                group="5-axis"),
     CommandSpec("CmdJogWrist", "Wrist jog (pitch/roll)",
                 "5-axis arm: turn the tool at these rates (document 000's operator); tip fixed "
                 "(the arm moves round the tip) or flange fixed (only the wrist). Jog update "
@@ -203,11 +223,13 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("speed", "Max speed (0 = 30)", "Arg3", default=0.0, unit="deg/s"),
                  Field("accel", "Acceleration (0 = 150)", "Arg4", default=0.0,
                        unit="deg/s^2"),
-                 Field("mode", "Mode", "Int1", "choice", 0, choices=_WRIST_JOG_MODES))),
+                 Field("mode", "Mode", "Int1", "choice", 0, choices=_WRIST_JOG_MODES)),
+                group="5-axis"),
     CommandSpec("CmdSetGripper", "Gripper",
                 "Open the gripper (channel 5) to a percentage of its calibrated travel: "
                 "0 closed, 100 open. No arm motion starts or ends.",
-                (Field("opening", "Opening", "Arg1", default=50.0, unit="%"),)),
+                (Field("opening", "Opening", "Arg1", default=50.0, unit="%"),),
+                group="5-axis"),
     CommandSpec("CmdFollowImu", "Follow the IMU",
                 "5-axis arm: the tool follows the fused IMU orientation (pitch and roll; the "
                 "tip or flange held where it stands), or stops following. Brakes by itself "
@@ -219,13 +241,15 @@ COMMANDS: tuple[CommandSpec, ...] = (
                        unit="deg"),
                  Field("mroll", "Mount roll", "Arg4", default=0.0, unit="deg"),
                  Field("mpitch", "Mount pitch", "Arg5", default=0.0, unit="deg"),
-                 Field("myaw", "Mount yaw", "Arg6", default=0.0, unit="deg"))),
+                 Field("myaw", "Mount yaw", "Arg6", default=0.0, unit="deg")),
+                group="5-axis"),
     CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
                 "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",
                 (Field("x", "X", "Arg1", default=150.0, unit="mm"),
                  Field("y", "Y", "Arg2", default=0.0, unit="mm"),
                  Field("z", "Z", "Arg3", default=120.0, unit="mm"),
-                 Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW))),
+                 Field("elbow", "Elbow", "Int1", "choice", 0, choices=_ELBOW)),
+                group="Move"),
 )
 
 
@@ -307,7 +331,7 @@ class CommandTable:
     def describe(self) -> list[dict[str, object]]:
         """The table as JSON for the page (it builds its forms from it)."""
         return [{"name": s.constant, "code": self.constants[s.constant], "label": s.label,
-                 "help": s.help, "batch": s.batch,
+                 "help": s.help, "batch": s.batch, "group": s.group,
                  "fields": [{"key": f.key, "label": f.label, "slot": f.slot, "kind": f.kind,
                              "default": f.default, "unit": f.unit,
                              "choices": [list(c) for c in f.choices]} for f in s.fields]}

@@ -1,16 +1,35 @@
 // armbench live view: state over a WebSocket, the arm drawn with a small perspective
-// projection on a 2-D canvas (no third-party code), commands built from the server's table.
+// projection on a 2-D canvas (no third-party code), commands built from the server's table,
+// the program's located variables in a table. trace.js adds the trace panel.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
 const fmt = (v, d = 2) => (v === null || v === undefined) ? "-" :
   (typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toFixed(d)) : String(v));
-const esc = (s) => String(s).replace(/[&<>"]/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\"": "&quot;"}[c]));
+// a variable's value: whole numbers as they are, others to 7 significant digits (a REAL's)
+const num = (v) => (v === null || v === undefined) ? "-" : typeof v === "boolean" ? (v ? "TRUE" : "FALSE") :
+  Number.isInteger(v) ? String(v) : String(Number(v.toPrecision(7)));
+const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\"": "&quot;", "'": "&#39;"}[c]));
 
 // What the tests and the bench read: frames drawn, messages received, the last drawn pose.
 const armbench = window.armbench = {
   messages: 0, frames: 0, busyMs: 0, drawn: null, state: null, lastResult: null, history: [],
+  info: null, trace: null,
 };
+
+// ---- views (tabs of the page) ------------------------------------------------------------
+function showView(name) {
+  const buttons = [...document.querySelectorAll("#views button")].filter((b) => !b.hidden);
+  if (!buttons.some((b) => b.dataset.view === name)) name = buttons[0].dataset.view;
+  for (const b of buttons) b.setAttribute("aria-selected", String(b.dataset.view === name));
+  for (const v of document.querySelectorAll(".view")) v.hidden = v.id !== "view-" + name;
+  if (location.hash !== "#" + name) history.replaceState(null, "", "#" + name);
+  if (name === "variables") renderRegisters();
+}
+for (const b of document.querySelectorAll("#views button")) {
+  b.addEventListener("click", () => showView(b.dataset.view));
+}
+const isController = () => armbench.info && armbench.info.mode === "controller";
 
 // ---- camera and projection -------------------------------------------------------------
 const cam = { yaw: -0.9, pitch: 0.42, dist: 900, scale: 1.0, target: [90, 0, 110] };
@@ -53,6 +72,15 @@ function drawArm(points, style, width, dash) {
   }
 }
 
+function cross(p, style) {
+  const s = project(p);
+  ctx.strokeStyle = style; ctx.lineWidth = 2; ctx.setLineDash([]);
+  ctx.beginPath();
+  ctx.moveTo(s[0] - 7, s[1] - 7); ctx.lineTo(s[0] + 7, s[1] + 7);
+  ctx.moveTo(s[0] - 7, s[1] + 7); ctx.lineTo(s[0] + 7, s[1] - 7);
+  ctx.stroke();
+}
+
 const trail = [];
 
 function draw(state) {
@@ -79,17 +107,30 @@ function draw(state) {
     }
     drawArm(pts.plant, "#2f5d8a", 7);
   }
-  if (pts.plc) drawArm(pts.plc, "#e8710a", 2.5, [7, 5]);
+  if (pts.setpoint) drawArm(pts.setpoint, "#8e44ad", 1.2);
+  if (pts.plc) {
+    drawArm(pts.plc, "#e8710a", 2.5, [7, 5]);
+    if (pts.tool) {                            // the 5-axis wrist: flange and 60 mm tool
+      line(pts.plc[3], pts.tool[0], "#f0a060", 1.5);
+      line(pts.tool[0], pts.tool[1], "#f0a060", 1.5);
+      const tip = project(pts.tool[1]);
+      ctx.fillStyle = "#f0a060"; ctx.beginPath(); ctx.arc(tip[0], tip[1], 2.5, 0, 2 * Math.PI); ctx.fill();
+    }
+  }
+  const tool = state.tool || {};
+  if (tool.cartesian) cross(tool.cartesian, "#2e7d32");
   const j = state.joints || {};
   ctx.fillStyle = "#1d232b"; ctx.font = "12px system-ui";
-  ctx.fillText("PLC   " + (j.plc || []).map((a) => fmt(a, 1)).join("  ") + " deg", 10, 18);
-  ctx.fillText("plant " + (j.plant || []).map((a) => fmt(a, 1)).join("  ") + " deg", 10, 34);
+  ctx.fillText("output " + (j.plc || []).map((a) => fmt(a, 1)).join("  ") + " deg", 10, 18);
+  ctx.fillText("plant  " + (j.plant || []).map((a) => fmt(a, 1)).join("  ") + " deg", 10, 34);
   canvas.dataset.plcJoints = (j.plc || []).join(",");
   canvas.dataset.plantJoints = (j.plant || []).join(",");
+  canvas.dataset.setpointJoints = (j.setpoint || []).join(",");
+  canvas.dataset.tool = (tool.output || []).join(",");
   canvas.dataset.seq = state.seq;
   armbench.frames += 1;
   // `at` and the snapshot's `t` (when the server read the PLC) are epoch ms / s
-  armbench.drawn = { seq: state.seq, plc: j.plc, plant: j.plant, t: state.t,
+  armbench.drawn = { seq: state.seq, plc: j.plc, plant: j.plant, target: j.target, t: state.t,
                      at: performance.timeOrigin + performance.now() };
   armbench.history.push(armbench.drawn);
   if (armbench.history.length > 256) armbench.history.shift();
@@ -120,7 +161,7 @@ canvas.addEventListener("wheel", (e) => {
   if (armbench.state) pending = armbench.state;
 }, { passive: false });
 
-// ---- tables ------------------------------------------------------------------------------
+// ---- header, banner and tables -------------------------------------------------------------
 function kv(id, rows) {
   $(id).tBodies[0].innerHTML = rows.map(([k, v]) => `<tr><td>${esc(k)}</td><td>${v}</td></tr>`).join("");
 }
@@ -137,10 +178,13 @@ function update(s) {
   const conn = $("conn");
   conn.textContent = s.connected ? "connected" : (s.error || "not connected");
   conn.className = "badge " + (s.connected ? "ok" : "bad");
+  updateFaults(s);
   if (!s.connected) return;
   const t0 = performance.now();
-  draw(s);
-  updateJoints(s);
+  if (s.mode === "controller" && !s.waiting) {
+    draw(s);
+    updateJoints(s);
+  }
   // The tables below change the layout; at 10 Hz they cost the drawing no frames.
   if (now - lastTables >= 100) { lastTables = now; updateTables(s); }
   armbench.busyMs += performance.now() - t0;
@@ -149,63 +193,130 @@ function update(s) {
 let lastTables = -1e9;
 let shownEvent = -1;
 
+// The banner: the last command's answer (this page's, or any page's when newer) and what is
+// wrong now. It sits in the sticky header, so it is in view wherever the page is scrolled.
+let ownResult = null;   // {at: epoch ms, ok, message}
+function showLastCommand(s) {
+  const server = s && s.last_command ? { at: s.last_command.t * 1000, ok: s.last_command.ok,
+                                          message: s.last_command.message } : null;
+  const r = ownResult && (!server || ownResult.at >= server.at) ? ownResult : server;
+  if (!r) return;
+  const el = $("lastcmd");
+  const text = `${new Date(r.at).toLocaleTimeString()} ${r.message}`;
+  if (el.textContent !== text) el.textContent = text;
+  el.className = r.pending ? "pending" : r.ok ? "done" : "error";
+}
+
+function updateFaults(s) {
+  const faults = [];
+  if (!s.connected) faults.push(s.error || "not connected to the PLC");
+  if (s.waiting) faults.push(s.waiting);
+  if (s.plc && s.plc.fault) faults.push("PLC fault at " + s.plc.fault);
+  for (const f of s.faults || []) if (!faults.includes(f)) faults.push(f);
+  const html = faults.map((f) => `<span class="fault">${esc(f)}</span>`).join("");
+  const el = $("faults");
+  if (el.innerHTML !== html) el.innerHTML = html;
+  showLastCommand(s);
+}
+
 function updateHeader(s) {
-  $("plcaddr").textContent = "Modbus " + s.plc_address;
-  $("scancount").textContent = s.scan_count;
-  $("scanhz").textContent = fmt(s.scan_hz, 1);
-  const plc = s.plc, c = s.controller;
+  $("plcaddr").textContent = s.plc_address;
+  $("progname").textContent = s.program || "";
+  const plc = s.plc;
   const st = $("plcstate");
   st.textContent = plc.state || "n/a";
   st.className = "badge " + (plc.state === "RUNNING" ? "ok" : plc.state ? "bad" : "warn");
+  if (s.mode !== "controller" || s.waiting) return;
+  $("scancount").textContent = s.scan_count;
+  $("scanhz").textContent = fmt(s.scan_hz, 1);
+  const c = s.controller;
   const cs = $("ctlstate");
   cs.textContent = c.state + (c.busy_mailbox ? ` (mailbox ${c.busy_mailbox})` : "");
   cs.className = "badge " + (c.state === "Ready" ? "ok" : "warn");
+  const m = s.motion, ms = $("motionstate");
+  const what = m.kind ? m.kind_name : "none";
+  ms.textContent = !m.kind ? "none" : m.busy ? `${what} ${fmt(100 * (m.progress || 0), 0)}%` :
+    m.error ? `${what} error ${m.error_id} ${m.error_name}` : m.aborted ? `${what} aborted` : `${what} done`;
+  ms.className = "badge " + (m.error ? "bad" : m.busy ? "warn" : "ok");
 }
 
+const JOINT_ROWS = ["Base", "Shoulder", "Elbow"];
 function updateJoints(s) {
-  const jt = s.joints, ch = s.channels;
-  $("joints").tBodies[0].innerHTML = ["Base", "Shoulder", "Elbow"].map((name, i) =>
-    `<tr><td class="l">${name}</td><td>${fmt(jt.plc[i])}</td><td>${fmt(jt.plant[i])}</td>` +
+  const jt = s.joints, ch = s.channels, w = s.wrist;
+  const rows = JOINT_ROWS.map((name, i) =>
+    `<tr><td class="l">${name}</td><td>${fmt(jt.target[i])}</td><td>${fmt(jt.setpoint[i])}</td>` +
+    `<td class="out">${fmt(jt.plc[i])}</td><td>${fmt(jt.plant[i])}</td>` +
     `<td>${fmt(ch[i].plc_pulse_us, 1)}</td><td>${ch[i].full_off ? "off" : ch[i].count}</td>` +
-    `<td>${fmt(ch[i].plant_pulse_us, 1)}</td><td>${fmt(ch[i].servo_deg)}</td></tr>`).join("");
-  $("echo").textContent = s.echo.map((v) => v === null ? "-" : v.toFixed(2)).join(", ");
+    `<td>${fmt(ch[i].plant_pulse_us, 1)}</td><td>${fmt(ch[i].servo_deg)}</td></tr>`);
+  ["WristPitch", "WristRoll"].forEach((name, i) => rows.push(
+    `<tr><td class="l">${name}</td><td>-</td><td>${fmt(w.setpoint[i])}</td><td class="out">${fmt(w.output[i])}</td>` +
+    `<td>-</td><td>${fmt(w.pulse_us[i], 1)}</td><td>${ch[3 + i].full_off ? "off" : ch[3 + i].count}</td><td>-</td><td>-</td></tr>`));
+  rows.push(`<tr><td class="l">Gripper</td><td>${fmt(w.gripper_pct, 1)} %</td><td>-</td><td class="out">${fmt(w.gripper_deg)}</td>` +
+    `<td>-</td><td>${fmt(w.gripper_pulse_us, 1)}</td><td>${ch[5].full_off ? "off" : ch[5].count}</td><td>-</td><td>-</td></tr>`);
+  $("joints").tBodies[0].innerHTML = rows.join("");
+  const t = s.tool;
+  const xyz = (p) => p ? p.map((v) => `<td>${fmt(v)}</td>`).join("") : "<td>-</td><td>-</td><td>-</td>";
+  $("tool").tBodies[0].innerHTML = [
+    ["output stage: reference FK of OutBaseDeg..", t.output, "out"],
+    ["motion setpoint: reference FK of SetBaseDeg..", t.setpoint, ""],
+    ["Cartesian setpoint (CartX..Z, while a Cartesian motion runs)", t.cartesian, ""],
+    ["plant: reference FK of the servo models", t.plant, ""],
+    ["PLC's FK echo of the last joint-move target (EchoX..Z)", t.echo, ""],
+  ].map(([k, p, cls]) => `<tr class="${cls}"><td class="l">${esc(k)}</td>${xyz(p)}</tr>`).join("");
 }
 
 function updateTables(s) {
   updateHeader(s);
-  const ch = s.channels, plc = s.plc, c = s.controller;
+  kv("plc", plcRows(s));
+  updateEvents(s);
+  if (s.mode !== "controller" || s.waiting) return;
+  const ch = s.channels, c = s.controller, m = s.motion;
   $("channels").tBodies[0].innerHTML = ch.map((r) =>
     `<tr><td>${r.channel}</td><td class="l">${esc(r.joint)}</td><td>0x${r.word.toString(16).padStart(4, "0")}</td>` +
     `<td>${r.count}</td><td>${r.full_off ? "yes" : ""}</td></tr>`).join("");
-  $("mailboxes").tBodies[0].innerHTML = s.mailboxes.map((m) => {
-    const cls = (m.pending ? "pending " : "") + (m.result ? "rejected " : "") + (m.owner ? "owned" : "");
-    const state = !m.session ? "empty" : m.pending ? "waiting" : m.owner ? "answered" : "free";
-    return `<tr class="${cls}"><td>${m.mailbox}</td><td>${m.session}</td><td>${m.seq}</td>` +
-      `<td class="l">${m.code} ${esc(m.command)}</td><td>${m.int1}</td><td>${m.int2}</td>` +
-      `<td>${m.args.slice(0, 3).map((a) => fmt(a, 1)).join(" / ")}</td><td>${m.owner}</td>` +
-      `<td>${m.ack_seq}</td><td class="res l">${m.result} ${esc(m.result_name)}</td><td class="l">${state}</td></tr>`;
+  $("mailboxes").tBodies[0].innerHTML = s.mailboxes.map((mb) => {
+    const cls = (mb.pending ? "pending " : "") + (mb.result ? "rejected " : "") + (mb.owner ? "owned" : "");
+    const state = !mb.session ? "empty" : mb.pending ? "waiting" : mb.owner ? "answered" : "free";
+    return `<tr class="${cls}"><td>${mb.mailbox}</td><td>${mb.session}</td><td>${mb.seq}</td>` +
+      `<td class="l">${mb.code} ${esc(mb.command)}</td><td>${mb.int1}</td><td>${mb.int2}</td>` +
+      `<td>${mb.args.slice(0, 3).map((a) => fmt(a, 1)).join(" / ")}</td><td>${mb.owner}</td>` +
+      `<td>${mb.ack_seq}</td><td class="res l">${mb.result} ${esc(mb.result_name)}</td><td class="l">${state}</td></tr>`;
   }).join("");
-  const rows = [["state", plc.state ? badge(plc.state, plc.state === "RUNNING" ? "ok" : "bad") : esc(plc.note)],
-    ["fault", plc.fault ? `<b class="fault">${esc(plc.fault)}</b>` : "none"],
-    ["scans (ScanCount)", s.scan_count], ["scan rate (from ScanCount)", fmt(s.scan_hz, 1) + " Hz"],
-    ["page updates", fmt(s.poll_hz, 1) + " Hz"]];
-  for (const t of plc.tasks) {
-    rows.push([`task ${t.name}`, `every ${fmt(t.interval_ms, 3)} ms, ${t.scans} scans, ${t.overruns} overruns`]);
-    rows.push([`  execution`, `mean ${fmt(t.exec_mean_us, 1)} us, max ${fmt(t.exec_max_us, 1)} us`]);
-    rows.push([`  start jitter`, `p50 ${fmt(t.jitter_p50_us, 1)} us, p99 ${fmt(t.jitter_p99_us, 1)} us, max ${fmt(t.jitter_max_us, 1)} us`]);
-  }
-  kv("plc", rows);
   kv("ctl", [["state (CtlState)", esc(c.state)], ["InitPwm mailbox (BusyMailbox)", c.busy_mailbox],
     ["commands answered", c.commands_answered], ["commands ignored", c.commands_ignored],
+    ["motion (MotionKind, mailbox, seq)", `${esc(m.kind_name)}, ${m.mailbox}, ${m.seq}; ${m.starts} started`],
+    ["motion state", `${m.busy ? "busy" : m.done ? "done" : m.error ? "error " + m.error_id + " " + esc(m.error_name) : m.aborted ? "aborted" : "-"}` +
+      `${m.at_limit ? ", at a limit" : ""}${m.slew_limited ? ", slew-limited" : ""}`],
     ["PwmReady / prescale", `${c.pwm_ready ? "yes" : "no"} / ${c.prescale}`],
     ["PwmInitRequest (%QX0.0)", c.PwmInitRequest ? "TRUE" : "FALSE"],
     ["PwmDriverReady / Fault (%IX0.0/0.1)", `${c.PwmDriverReady ? "TRUE" : "FALSE"} / ${c.PwmDriverFault ? "TRUE" : "FALSE"}`],
     ["batch owner / count / failures", `${c.batch_owner} / ${c.batch_count} / ${c.batch_failures}`],
     ["plant PCA9685", s.plant.pca_running ? `running ${fmt(s.plant.update_rate_hz, 2)} Hz` : "not running (send Init PWM)"]]);
-  const lastEvent = s.events.length ? s.events[s.events.length - 1].id : 0;
+}
+
+function plcRows(s) {
+  const plc = s.plc;
+  const rows = [["address", esc(s.plc_address)], ["program", esc(s.program || "")],
+    ["state", plc.state ? badge(plc.state, plc.state === "RUNNING" ? "ok" : "bad") : esc(plc.note)],
+    ["fault", plc.fault ? `<b class="fault">${esc(plc.fault)}</b>` : "none"],
+    ["view's polls", fmt(s.poll_hz, 1) + " Hz"]];
+  if (s.mode === "controller" && !s.waiting) {
+    rows.push(["scans (ScanCount)", s.scan_count], ["scan rate (from ScanCount)", fmt(s.scan_hz, 1) + " Hz"]);
+  }
+  for (const t of plc.tasks) {
+    rows.push([`task ${t.name}`, `every ${fmt(t.interval_ms, 3)} ms, ${t.scans} scans, ${t.overruns} overruns`]);
+    rows.push([`  execution`, `mean ${fmt(t.exec_mean_us, 1)} us, max ${fmt(t.exec_max_us, 1)} us`]);
+    rows.push([`  start jitter`, `p50 ${fmt(t.jitter_p50_us, 1)} us, p99 ${fmt(t.jitter_p99_us, 1)} us, max ${fmt(t.jitter_max_us, 1)} us`]);
+  }
+  return rows;
+}
+
+function updateEvents(s) {
+  const events = s.events || [];
+  const lastEvent = events.length ? events[events.length - 1].id : 0;
   if (lastEvent === shownEvent) return;
   shownEvent = lastEvent;
-  $("events").innerHTML = s.events.slice().reverse().map((e) =>
+  $("events").innerHTML = events.slice().reverse().map((e) =>
     `<li class="${e.kind}">${new Date(e.t * 1000).toLocaleTimeString()} ${esc(e.text)}</li>`).join("");
 }
 
@@ -223,18 +334,17 @@ function connect() {
     setTimeout(connect, 1000);
   };
 }
-connect();
 
 // ---- commands --------------------------------------------------------------------------------
-function showResult(ok, text) {
-  const m = $("cmdmsg");
-  m.textContent = text; m.className = ok ? "done" : "error";
+function showResult(ok, text, isPending) {
+  ownResult = { at: Date.now(), ok, message: text, pending: isPending };
+  showLastCommand(armbench.state);
 }
 
 async function send(cmd, form) {
   const fields = {};
   for (const f of cmd.fields) fields[f.key] = form.elements[f.key].value;  // checked by the server
-  showResult(true, `${cmd.label}: sending...`);
+  showResult(true, `${cmd.label}: sending...`, true);
   let answer;
   try {
     const r = await fetch("/api/command", { method: "POST", headers: { "Content-Type": "application/json" },
@@ -244,7 +354,7 @@ async function send(cmd, form) {
     answer = { ok: false, message: `${cmd.label}: the web server did not answer (${e})` };
   }
   armbench.lastResult = answer;
-  showResult(answer.ok, answer.message);
+  showResult(answer.ok, answer.message, false);
   const bt = $("batch");
   if (answer.batch && answer.batch.length) {
     bt.hidden = false;
@@ -267,29 +377,44 @@ function fieldHtml(f) {
     `${f.unit ? " " + esc(f.unit) : ""}</label>`;
 }
 
+function showGroup(group) {
+  for (const b of $("cmdtabs").children) b.setAttribute("aria-selected", String(b.dataset.group === group));
+  for (const f of $("cmdforms").children) f.hidden = f.dataset.group !== group;
+}
+
 async function loadCommands() {
   const r = await fetch("/api/commands");
-  const { commands } = await r.json();
-  const box = $("commands");
+  const { commands, groups: order } = await r.json();
+  const groups = [];
   for (const cmd of commands) {
     const form = document.createElement("form");
-    form.className = "cmd"; form.dataset.command = cmd.name;
+    form.className = "cmd"; form.dataset.command = cmd.name; form.dataset.group = cmd.group;
     form.innerHTML = `<div class="help"><b>${esc(cmd.label)}</b> (code ${cmd.code}): ${esc(cmd.help)}</div>` +
       cmd.fields.map(fieldHtml).join("") + `<button type="submit" name="send">${esc(cmd.label)}</button>`;
     form.addEventListener("submit", (e) => { e.preventDefault(); send(cmd, form); });
-    box.appendChild(form);
+    if (cmd.group === "") { $("cmdalways").appendChild(form); continue; }
+    if (!groups.includes(cmd.group)) groups.push(cmd.group);
+    $("cmdforms").appendChild(form);
   }
+  for (const g of order.filter((x) => groups.includes(x))) {
+    const b = document.createElement("button");
+    b.type = "button"; b.dataset.group = g; b.textContent = g; b.setAttribute("role", "tab");
+    b.addEventListener("click", () => showGroup(g));
+    $("cmdtabs").appendChild(b);
+  }
+  if (groups.length) showGroup(order.find((x) => groups.includes(x)));
 }
-loadCommands();
 
-// ---- register table -----------------------------------------------------------------------
+// ---- located variables ------------------------------------------------------------------------
 let registers = [];
 function renderRegisters() {
+  if ($("view-variables").hidden && registers.length && $("registers").tBodies[0].rows.length) return;
   const q = $("regfilter").value.trim().toLowerCase();
-  const rows = registers.filter((r) => !q || [r.name, r.location, r.group, r.description].some((x) => x.toLowerCase().includes(q)));
-  $("registers").tBodies[0].innerHTML = rows.slice(0, 400).map((r) =>
-    `<tr><td>${esc(r.name)}</td><td class="l">${esc(r.location)}</td><td>${r.table} ${r.address}</td>` +
-    `<td class="l">${esc(r.type)}</td><td>${fmt(r.value, 3)}</td><td class="l">${esc(r.description)}</td></tr>`).join("");
+  const rows = registers.filter((r) => !q || [r.name, r.location, r.group, r.description, r.type].some((x) => x.toLowerCase().includes(q)));
+  $("registers").tBodies[0].innerHTML = rows.slice(0, 2000).map((r) =>
+    `<tr data-name="${esc(r.name)}"><td class="l">${esc(r.name)}</td><td class="l">${esc(r.location)}</td><td>${r.table} ${r.address}</td>` +
+    `<td class="l">${esc(r.type)}</td><td class="value">${num(r.value)}</td>` +
+    `<td class="l">${esc(r.description)}</td></tr>`).join("");
 }
 $("regfilter").addEventListener("input", renderRegisters);
 async function pollRegisters() {
@@ -298,6 +423,23 @@ async function pollRegisters() {
     registers = (await r.json()).registers;
     renderRegisters();
   } catch (e) { /* the WebSocket badge already says the server is gone */ }
-  setTimeout(pollRegisters, 1000);
+  setTimeout(pollRegisters, $("view-variables").hidden ? 2000 : 250);
 }
-pollRegisters();
+
+// ---- start -------------------------------------------------------------------------------
+async function start() {
+  const info = await (await fetch("/api/info")).json();
+  armbench.info = info;
+  const controller = info.mode === "controller";
+  for (const e of document.querySelectorAll(".ctl-only")) e.hidden = !controller;
+  $("progname").textContent = info.program;
+  $("plcaddr").textContent = info.plc_address;
+  $("unreachable").textContent = info.unreachable.length ? "Not reachable over Modbus (OpenPLC maps no " +
+    "Modbus address to them): " + info.unreachable.map((u) => `${u.name} (${u.location})`).join(", ") : "";
+  showView(location.hash.slice(1) || (controller ? "arm" : "variables"));
+  pollRegisters();
+  if (controller) await loadCommands();
+  connect();
+  if (window.armbenchTrace) window.armbenchTrace(info);
+}
+start();

@@ -1,0 +1,121 @@
+"""The live view of a program that is not the arm controller, and its trace panel, in Debian's
+chromium driven by Playwright.
+
+tests/web/st/counter.st runs in the soft PLC. The page shows its located variables and their
+values as they change; the trace panel samples the variables ticked, plots them, pauses, and
+downloads its buffer as CSV, whose rows are checked against the program's own arithmetic
+(Wave = SIN(Scans * 0.1) in float32) and against the samples the page holds.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from playwright.sync_api import Browser, Page
+from webview_helpers import COUNTER, get, serve_program, wait_for
+
+from armbench.web.app import WebView
+from armbench.web.variables import program_variables
+
+
+def wave(scans: int) -> float:
+    """The program's Wave for a scan count, in float32 as the PLC computes it."""
+    arg = np.float32(np.float32(scans) * np.float32(0.1))
+    return float(np.float32(math.sin(float(arg))))
+
+
+@pytest.fixture(scope="module")
+def counter_view() -> Iterator[WebView]:
+    with serve_program([COUNTER]) as r, WebView(
+            r.host, r.port, program=program_variables([COUNTER], "counter.st"), web_port=0,
+            local_plc=r.plc) as w:
+        wait_for(lambda: get(w, "api/state").get("connected") is True, "the view's first poll")
+        yield w
+
+
+@pytest.fixture()
+def page(browser: Browser, counter_view: WebView) -> Iterator[Page]:
+    pg = browser.new_page(viewport={"width": 1300, "height": 900}, accept_downloads=True)
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.goto(counter_view.url)
+    pg.wait_for_function("window.armbench.info !== null && "
+                         "document.querySelectorAll('#registers tbody tr').length > 0",
+                         timeout=15000)
+    yield pg
+    pg.close()
+    assert errors == [], errors
+
+
+def value(page: Page, name: str) -> str:
+    return page.inner_text(f"#registers tr[data-name={name}] td.value")
+
+
+def test_variables_of_another_program_shown_and_updated(page: Page) -> None:
+    assert page.inner_text("#conn") == "connected"
+    assert "counter.st" in page.inner_text("#progname")
+    # no arm, no commands: the variables are the page
+    assert page.is_hidden("#view-arm") and page.is_hidden("#commands")
+    assert page.is_visible("#view-variables")
+    names = page.eval_on_selector_all("#registers tbody tr", "rs => rs.map(r => r.dataset.name)")
+    assert names == ["Wide", "Scans", "Wave", "Level", "Lamp", "Hold", "Inp"]
+    row = page.inner_text("#registers tr[data-name=Wave]")
+    assert "%MD1" in row and "holding 2050" in row and "REAL" in row and "SIN(Scans" in row
+    assert value(page, "Hold") == "42.5" and value(page, "Wide") == "0.125"
+    first = int(value(page, "Scans"))
+    page.wait_for_function("n => +document.querySelector('#registers tr[data-name=Scans] "
+                           "td.value').textContent > n + 20", arg=first, timeout=10000)
+    assert "Flag (%MX0.0)" in page.inner_text("#unreachable")
+
+
+def test_trace_select_plot_pause_and_download_csv(page: Page, counter_view: WebView,
+                                                  tmp_path: Path) -> None:
+    page.click("#views button[data-view=trace]")
+    assert page.is_visible("#trace-plot")
+    for name in ("Scans", "Wave"):
+        page.check(f"#trace-vars input[value={name}]")
+    page.wait_for_function("window.armbench.trace.rows.length > 200 && "
+                           "+document.getElementById('trace-plot').dataset.drawn > 0",
+                           timeout=15000)
+    assert page.evaluate("window.armbench.trace.names") == ["Scans", "Wave"]
+    assert page.inner_text("#trace-legend").count("Scans") == 1
+
+    page.click("#trace-pause")
+    assert page.inner_text("#trace-pause") == "Resume"
+    held = page.evaluate("window.armbench.trace.rows.length")
+    server_before = get(counter_view, "api/trace?since=0")["samples"][-1][0]
+    time.sleep(0.5)
+    # the server keeps sampling; the paused page shows and keeps what it had
+    assert get(counter_view, "api/trace?since=0")["samples"][-1][0] > server_before + 20
+    assert page.evaluate("window.armbench.trace.rows.length") == held
+
+    with page.expect_download() as d:
+        page.click("#trace-csv")
+    path = tmp_path / d.value.suggested_filename
+    d.value.save_as(path)
+    assert path.suffix == ".csv"
+    with path.open(newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["time_s", "unix_time_s", "Scans", "Wave"]
+    body = [[float(x) for x in r] for r in table[1:]]
+    assert len(body) == held
+    page_rows = page.evaluate("window.armbench.trace.rows")
+    assert [r[2] for r in body] == [r[1] for r in page_rows]
+    assert body[0][0] == 0.0
+    assert all(b[0] > a[0] for a, b in zip(body, body[1:], strict=False))
+    assert all(b[2] >= a[2] for a, b in zip(body, body[1:], strict=False))
+    for r in body:
+        assert r[1] - r[0] == pytest.approx(body[0][1], abs=1e-5)
+        assert abs(r[1] - time.time()) < 60.0
+        assert r[3] == pytest.approx(wave(int(r[2])), abs=1e-6)
+
+    # resumed, the page catches up on what was sampled meanwhile, with no gap
+    page.click("#trace-pause")
+    page.wait_for_function("n => window.armbench.trace.rows.length > n + 50", arg=held)
+    assert page.evaluate("window.armbench.trace.gaps") == 0
