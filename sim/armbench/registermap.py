@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -20,7 +20,7 @@ from pathlib import Path
 from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
-from .compiler.symbols import CheckedProgram, InstanceModel, PouSym
+from .compiler.symbols import CheckedProgram, InstanceModel, PouSym, VarSym
 from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
@@ -133,18 +133,63 @@ def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -
 
 
 def _registers(inst: InstanceModel) -> list[Register]:
-    sources: dict[str, list[str]] = {}
+    return _located(inst.pou.vars.values(), {}, None)
+
+
+def _located(variables: Iterable[VarSym], sources: dict[str, list[str]],
+             unreachable: list[tuple[str, str]] | None) -> list[Register]:
+    """The located ones among ``variables`` as Registers. A location Modbus cannot reach
+    raises ValueError, or goes to ``unreachable`` as (name, location) when that is given."""
     regs: list[Register] = []
-    for var in inst.pou.vars.values():
+    for var in variables:
         if var.address is None:
             continue
+        try:
+            table, address, count = modbus_location(var.address)
+        except ValueError:
+            if unreachable is None:
+                raise
+            unreachable.append((var.name, var.address.upper()))
+            continue
         if var.pos.file not in sources:
-            sources[var.pos.file] = Path(var.pos.file).read_text(encoding="utf-8").splitlines()
+            sources[var.pos.file] = Path(var.pos.file).read_text(
+                encoding="utf-8", errors="replace").splitlines()
         group, description = _group_and_comment(sources[var.pos.file], var.pos.line)
-        table, address, count = modbus_location(var.address)
         regs.append(Register(var.name, str(var.type), var.address.upper(), table, address,
                              count, group, description))
     return regs
+
+
+@dataclass(frozen=True)
+class ProgramMap:
+    """Every located variable of a program's CONFIGURATION as seen over Modbus: the located
+    globals, then each program instance's, in declaration order. ``instances`` says which
+    instance declares each register (None: a global)."""
+
+    registers: tuple[Register, ...]
+    instances: tuple[str | None, ...]
+    # (name, location) of located variables OpenPLC does not serve (%IB, %QD, %MX, ...)
+    unreachable: tuple[tuple[str, str], ...]
+
+
+def program_map(prog: CheckedProgram) -> ProgramMap:
+    """The Modbus map of any checked program (the controller's is one case of it)."""
+    if prog.config is None:
+        raise ValueError("the sources have no CONFIGURATION: OpenPLC and the soft PLC run "
+                         "CONFIGURATION Config0 / RESOURCE Res0 / TASK / PROGRAM ... WITH")
+    sources: dict[str, list[str]] = {}
+    unreachable: list[tuple[str, str]] = []
+    regs = _located(prog.config.globals.values(), sources, unreachable)
+    owners: list[str | None] = [None] * len(regs)
+    seen: set[str] = set()
+    for inst in prog.config.instances:
+        if inst.pou.key in seen:
+            continue  # a second instance of a PROGRAM shares its located variables
+        seen.add(inst.pou.key)
+        mine = _located(inst.pou.vars.values(), sources, unreachable)
+        regs += mine
+        owners += [inst.name] * len(mine)
+    return ProgramMap(tuple(regs), tuple(owners), tuple(unreachable))
 
 
 def constants(paths: Sequence[str | Path] = SOURCES,
