@@ -6,7 +6,7 @@ interpreters:
 
 - the plugin's own import time, measured after ``import pytest`` (pytest is loaded anyway);
 - the plugin's cumulative import time as ``python -X importtime`` reports it (pytest
-  included, when nothing imported it before);
+  included, when nothing imported it before), and ``import pytest`` alone;
 - the wall time of ``pytest`` on one empty test in a temporary folder, with the plugin and
   with ``-p no:armbench``.
 
@@ -37,6 +37,13 @@ def _env(sim: Path) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"}
     env["PYTHONPATH"] = str(sim.resolve())
     return env
+
+
+def pytest_import_s(sim: Path) -> float:
+    out = subprocess.run([sys.executable, "-c", "import time\nt = time.perf_counter()\n"
+                          "import pytest\nprint(time.perf_counter() - t)\n"], env=_env(sim),
+                         check=True, capture_output=True, text=True).stdout
+    return float(out.strip())
 
 
 def own_import_s(sim: Path) -> float:
@@ -81,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
                                                          for _ in range(args.runs)]))
     print(_line("plugin import, -X importtime cumulative", [importtime_s(sim)
                                                              for _ in range(args.runs)]))
+    print(_line("  of which `import pytest` alone", [pytest_import_s(sim)
+                                                      for _ in range(args.runs)]))
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         (folder / "test_empty.py").write_text("def test_nothing():\n    pass\n")
