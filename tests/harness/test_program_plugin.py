@@ -147,6 +147,9 @@ def test_without_a_signature_the_plc_by_address_is_used_with_a_warning(
      ["--plc-program: test_counter.py is not an .st file (test paths go before"]),
     ({"bad.st": COUNTER.replace("Count + 1", "Count + Missing")},
      ["--plc-no-library", "--plc-program", "bad.st"], ["--plc-program does not compile:"]),
+    ({"bad.st": COUNTER.replace("Count + 1", "Count + Missing")}, ["--plc-program", "bad.st"],
+     ["bad.st:6:", "'Missing' is not declared", "compiled together with the armbench ST "
+      "library; --plc-no-library (plc_no_library = true in the ini file) leaves it out"]),
     ({"counter.st": COUNTER}, ["--plc-no-library", "--plc-program", "counter.st",
                                "--plc-signature", "Ident"],
      ["--plc-program: the program declares no located variable Ident"]),

@@ -375,7 +375,10 @@ def _load_or_exit(files: Sequence[Path], *, library: bool, signature: str | None
         return PlcProgram.load(files, library=library, signature=signature,
                                scan_counter=scan_counter)
     except CompileFailed as exc:
-        pytest.exit(f"armbench: {option} does not compile:\n{exc}",
+        hint = ("\narmbench: note: compiled together with the armbench ST library; "
+                "--plc-no-library (plc_no_library = true in the ini file) leaves it out"
+                if library else "")
+        pytest.exit(f"armbench: {option} does not compile:\n{exc}{hint}",
                     returncode=pytest.ExitCode.USAGE_ERROR)
     except ProgramError as exc:
         pytest.exit(f"armbench: {option}: {exc}", returncode=pytest.ExitCode.USAGE_ERROR)
