@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from typing import TypeVar
 
 from .mailbox_check import check_word
@@ -215,7 +215,9 @@ class Answer:
 
 @dataclass(frozen=True)
 class Status:
-    """The controller's status after a command, with that command's result as ``error_id``."""
+    """The controller's status after a command, with that command's result as ``error_id``;
+    ``ticket`` names the motion the command started (None: it started none), so the status a
+    motion command returns can be given to :meth:`ArmControllerClient.wait_motion`."""
 
     mailbox: int
     ack_seq: int
@@ -234,6 +236,7 @@ class Status:
     batch_owner: int
     batch_count: int
     batch_failures: int
+    ticket: MotionTicket | None = None
 
 
 Vec3 = tuple[float, float, float]
@@ -916,10 +919,12 @@ class ArmControllerClient:
                         wait: bool, timeout_s: float = 30.0) -> Status:
         st = self.command(code, ints=ints, args=args)
         if st.error_id == ERR_OK and self.mailbox is not None:
-            self.last_ticket = MotionTicket(self.mailbox, self.session, self._seq)
+            ticket = MotionTicket(self.mailbox, self.session, self._seq)
+            self.last_ticket = ticket
             if wait:
-                self.wait_motion(self.last_ticket, timeout_s=timeout_s)
-                return self._io(self.status, time.monotonic() + self.timeout_s)
+                self.wait_motion(ticket, timeout_s=timeout_s)
+                st = self._io(self.status, time.monotonic() + self.timeout_s)
+            return replace(st, ticket=ticket)
         return st
 
     def move_joints_profile(self, target: Vec3, profile: int, velocity: float,
@@ -962,10 +967,22 @@ class ArmControllerClient:
         """The motion registers, one FC3 request (they are contiguous)."""
         return MotionSample.decode(self._read_block(self._motion))
 
-    def wait_motion(self, ticket: MotionTicket | None = None,
+    def wait_motion(self, ticket: MotionTicket | Status | None = None,
                     timeout_s: float = 30.0) -> MotionOutcome:
         """Wait until the motion started by ``ticket`` (default: this client's last one) has
-        ended, or another motion has taken its place."""
+        ended, or another motion has taken its place. ``ticket`` may be the Status a motion
+        command returned (:meth:`move_linear`, :meth:`move_xyz`, ...)."""
+        if isinstance(ticket, Status):
+            if ticket.ticket is None:
+                # A status compared with the PLC's motion ticket never matches: waiting on it
+                # would report any motion, the one it started included, as superseded.
+                raise ValueError(
+                    "wait_motion: this status started no motion (result code "
+                    f"{ticket.error_id}; only an accepted motion command's status names one)")
+            ticket = ticket.ticket
+        elif ticket is not None and not isinstance(ticket, MotionTicket):
+            raise TypeError("wait_motion takes a MotionTicket or the Status a motion command "
+                            f"returned, not {type(ticket).__name__}")
         ticket = ticket or self.last_ticket
         if ticket is None:
             raise ValueError("wait_motion: this client has started no motion")

@@ -133,8 +133,7 @@ def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -
 
 
 def _registers(inst: InstanceModel) -> list[Register]:
-    regs, _ = _located(inst.pou.vars.values(), strict=True)
-    return regs
+    return _located(inst.pou.vars.values(), {}, None)
 
 
 @dataclass(frozen=True)
@@ -149,45 +148,59 @@ class Unreachable:
 
 @dataclass(frozen=True)
 class ProgramMap:
-    """Every located variable of a program: those a Modbus client reaches, and the rest."""
+    """Every located variable of a program's CONFIGURATION as seen over Modbus: the located
+    globals, then each program instance's, in declaration order. ``instances`` says which
+    instance declares each register (None: a global); ``unreachable`` lists the located
+    variables OpenPLC does not serve (%IB, %QD, %MX, ...)."""
 
-    registers: list[Register]
-    unreachable: list[Unreachable]
+    registers: tuple[Register, ...]
+    instances: tuple[str | None, ...]
+    unreachable: tuple[Unreachable, ...]
 
 
-def program_map(paths: Sequence[str | Path]) -> ProgramMap:
-    """The located variables of any program's CONFIGURATION: its VAR_GLOBALs, then each
-    program instance's, in declaration order (an instance of a program already listed adds
-    nothing: its variables sit at the same addresses). Unlike :func:`derive`, a variable
-    outside OpenPLC's Modbus map is listed in ``unreachable`` instead of failing the whole
-    program. Raises CompileFailed when the sources do not check."""
-    prog, diags = analyse(list(paths))
-    if prog is None:
-        raise CompileFailed(diags.sorted())
+def program_map(source: CheckedProgram | Sequence[str | Path]) -> ProgramMap:
+    """The Modbus map of any program (the controller's is one case of it), from a checked
+    program or from its source files. Unlike :func:`derive`, a variable outside OpenPLC's
+    Modbus map is listed in ``unreachable`` instead of failing the whole program. Raises
+    CompileFailed when the sources do not check, ValueError without a CONFIGURATION."""
+    if isinstance(source, CheckedProgram):
+        prog = source
+    else:
+        checked, diags = analyse(list(source))
+        if checked is None:
+            raise CompileFailed(diags.sorted())
+        prog = checked
     if prog.config is None or not prog.config.instances:
-        raise ValueError("the sources have no CONFIGURATION with a program instance")
-    seen: set[str] = set()
-    variables: list[VarSym] = list(prog.config.globals.values())
-    for inst in prog.config.instances:
-        if inst.pou.name.upper() not in seen:
-            seen.add(inst.pou.name.upper())
-            variables += inst.pou.vars.values()
-    regs, unreachable = _located(variables, strict=False)
-    return ProgramMap(regs, unreachable)
-
-
-def _located(variables: Iterable[VarSym],
-             strict: bool) -> tuple[list[Register], list[Unreachable]]:
+        raise ValueError("the sources have no CONFIGURATION with a program instance: OpenPLC "
+                         "and the soft PLC run CONFIGURATION Config0 / RESOURCE Res0 / TASK / "
+                         "PROGRAM ... WITH")
     sources: dict[str, list[str]] = {}
-    regs: list[Register] = []
     unreachable: list[Unreachable] = []
+    regs = _located(prog.config.globals.values(), sources, unreachable)
+    owners: list[str | None] = [None] * len(regs)
+    seen: set[str] = set()
+    for inst in prog.config.instances:
+        if inst.pou.key in seen:
+            continue  # a second instance of a PROGRAM shares its located variables
+        seen.add(inst.pou.key)
+        mine = _located(inst.pou.vars.values(), sources, unreachable)
+        regs += mine
+        owners += [inst.name] * len(mine)
+    return ProgramMap(tuple(regs), tuple(owners), tuple(unreachable))
+
+
+def _located(variables: Iterable[VarSym], sources: dict[str, list[str]],
+             unreachable: list[Unreachable] | None) -> list[Register]:
+    """The located ones among ``variables`` as Registers. A location Modbus cannot reach
+    raises ValueError, or goes to ``unreachable`` when that is given."""
+    regs: list[Register] = []
     for var in variables:
         if var.address is None:
             continue
         try:
             table, address, count = modbus_location(var.address)
         except ValueError as exc:
-            if strict:
+            if unreachable is None:
                 raise
             unreachable.append(Unreachable(var.name, str(var.type), var.address.upper(),
                                            str(exc)))
@@ -198,7 +211,7 @@ def _located(variables: Iterable[VarSym],
         group, description = _group_and_comment(sources[var.pos.file], var.pos.line)
         regs.append(Register(var.name, str(var.type), var.address.upper(), table, address,
                              count, group, description))
-    return regs, unreachable
+    return regs
 
 
 def constants(paths: Sequence[str | Path] = SOURCES,

@@ -82,7 +82,7 @@ def test_program_map_lists_every_located_variable() -> None:
     assert {r.name: r.description for r in pm.registers}["Wave"] == "SIN(Scans * 0.1)"
     # the controller's map is the same derivation
     controller = program_map(SOURCES)
-    assert controller.registers == list(controller_map().values())
+    assert list(controller.registers) == list(controller_map().values())
     assert not controller.unreachable
 
 

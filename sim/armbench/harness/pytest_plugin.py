@@ -1,47 +1,69 @@
-"""pytest plugin `armbench`: fixtures for Modbus regression tests of the arm controller.
+"""pytest plugin `armbench`: fixtures for Modbus tests of your own ST program and of the arm
+controller, on a soft PLC or on a real PLC by address.
 
-Installed with the package (entry point `pytest11`), so any test suite in this environment
-can use them:
+Installed with the package (entry point ``pytest11``), so any test suite in this environment
+can use them. Importing the plugin costs next to nothing: the compiler, the soft PLC and
+pymodbus are loaded by the first fixture that needs them.
+
+Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in the ini file):
+
+- ``plc_program`` (session): the program, checked once: its located variables by name, typed
+  from their declarations and addressed by OpenPLC's Modbus map.
+- ``program_plc`` (module): the PLC running it; by default a soft PLC started on a free
+  loopback port (one per test module and xdist worker), with ``--plc-address HOST:PORT`` a
+  real one, checked once per session: a PLC that does not answer, answers with another
+  program's signature, or does not scan ends the session with one line.
+- ``plc_vars``: typed access by name, ``plc_vars["Level"] = 12.5``, ``plc_vars.wait_scans(1)``.
+- ``modbus``: a plain :class:`~armbench.softplc.modbus_client.PlcClient` connected to it.
+- ``soft_plc``: a factory, ``soft_plc("a.st", library=False)``, for tests that start soft PLCs
+  of their own; each is stopped at the end of the test.
+
+The arm controller (``plc_project/Controller.st``):
 
 - ``plc_address`` (module scope): ``(host, port)`` of the PLC under test. By default a soft
-  PLC running ``plc_project/Controller.st`` with its Modbus server on a free loopback port
-  (one per test module; under pytest-xdist every worker process starts its own, so workers
-  never share one). With ``--plc-address HOST:PORT[,HOST:PORT...]`` (or ``--plc-host`` /
-  ``--plc-port`` for one) real PLCs (OpenPLC running ``plc_project/openplc/arm_controller.st``):
-  xdist worker N gets the N-th address. More workers than addresses is a usage error unless
-  ``--plc-share`` lets the workers take the addresses in turn. The controller's 16 mailboxes
-  keep the workers' commands apart, but the arm is one: a suite that moves it, calibrates it
-  or counts its answers (tests/modbus: the motion, calibration, gripper and soak tests) needs
-  the PLC to itself, and fails when another worker moves the same arm. Share a PLC only
-  between suites that read, solve or answer without moving it.
+  PLC running the controller on a free loopback port (one per test module; under
+  pytest-xdist every worker process starts its own). With ``--plc-address
+  HOST:PORT[,HOST:PORT...]`` (or ``--plc-host`` / ``--plc-port`` for one) real PLCs (OpenPLC
+  running ``plc_project/openplc/arm_controller.st``): xdist worker N gets the N-th address.
+  More workers than addresses is a usage error unless ``--plc-share`` lets the workers take
+  the addresses in turn. The controller's 16 mailboxes keep the workers' commands apart, but
+  the arm is one: a suite that moves it, calibrates it or counts its answers (tests/modbus:
+  the motion, calibration, gripper and soak tests) needs the PLC to itself, and fails when
+  another worker moves the same arm. Share a PLC only between suites that read, solve or
+  answer without moving it.
 - ``plc``: an :class:`~armbench.controller_client.ArmControllerClient` connected to it.
-- ``motion_recorder``: a factory of :class:`~armbench.controller_client.MotionRecorder`s on
-  their own connections to it (one FC3 read of the motion registers per scan, tagged with
-  the PLC's ScanCount), stopped at the end of the test; a suite asserts on the whole path.
+- ``motion_recorder``: a factory of :class:`~armbench.controller_client.MotionRecorder`s.
 - ``record_points``: ``record_points(n, total=...)`` tells the session that the running test
   checked ``n`` points of a sweep of ``total``. The controlling process (the one pytest-xdist
   workers report to) adds them up into one progress bar (``--sweep-progress``) and prints
   ``armbench sweep: N points in T s = R points/s on W workers`` at the end, T being the time
   from the first sweep test's start to the last one's end (PLC start-up not included).
 
-A real PLC that does not answer Modbus ends the session with one line naming host:port and
-the reason (pytest exit code 4).
+A real PLC that does not answer Modbus, or does not run the program the fixtures expect (the
+controller: it does not answer a Hello command; your program: see ``plc_program``), ends the
+session with one line naming host:port and the reason (pytest exit code 4).
 """
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import sys
 import time
-from collections.abc import Callable, Iterator
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from .. import argtypes
-from ..controller_client import ArmControllerClient, MotionRecorder
-from ..softplc.modbus_client import ModbusError, PlcClient
+
+if TYPE_CHECKING:  # imported by the fixtures that need them: see the module docstring
+    from ..controller_client import ArmControllerClient, MotionRecorder
+    from ..softplc.modbus_client import PlcClient
+    from .program import PlcProgram, PlcVariables, ProgramPlc
 
 PROBE_TIMEOUT_S = 3.0
 
@@ -50,7 +72,7 @@ POINTS_KEY = "armbench_points"  # user_properties entry: (points, total, start, 
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    group = parser.getgroup("armbench", "arm controller under test")
+    group = parser.getgroup("armbench", "PLC under test (armbench)")
     group.addoption("--plc-host", default=None,
                     help="run the Modbus tests against a real PLC at this host")
     group.addoption("--plc-port", type=argtypes.port, default=None,
@@ -60,9 +82,31 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="real PLCs, one per pytest-xdist worker (worker N takes the N-th)")
     group.addoption("--plc-share", action="store_true",
                     help="let more xdist workers than --plc-address entries share the PLCs")
+    group.addoption("--plc-program", nargs="+", action="extend", default=None,
+                    metavar="FILE.st",
+                    help="your ST program (files or folders) for the plc_program, "
+                         "program_plc, plc_vars and modbus fixtures: run in a soft PLC, or "
+                         "the variable map of the PLC at --plc-address (put test paths "
+                         "before this option)")
+    group.addoption("--plc-no-library", action="store_true", default=None,
+                    help="compile --plc-program without the armbench ST library")
+    group.addoption("--plc-signature", default=None, metavar="NAME",
+                    help="the program's located variable whose declared initial value "
+                         "identifies it (default: Signature, when declared)")
+    group.addoption("--plc-scan-counter", default=None, metavar="NAME",
+                    help="the program's located variable it increments every scan "
+                         "(default: ScanCount, when declared)")
     group.addoption("--sweep-progress", choices=("auto", "bar", "off"), default="auto",
                     help="progress bar of the points tests report with record_points "
                          "(auto: when stderr is a terminal)")
+    parser.addini("plc_program", type="paths", default=[],
+                  help="your ST program's files, relative to this ini file (--plc-program)")
+    parser.addini("plc_no_library", type="bool", default=False,
+                  help="compile plc_program without the armbench ST library")
+    parser.addini("plc_signature", default="",
+                  help="the program's signature variable (--plc-signature)")
+    parser.addini("plc_scan_counter", default="",
+                  help="the program's scan counter variable (--plc-scan-counter)")
 
 
 def plc_addresses(config: pytest.Config) -> tuple[tuple[str, int], ...]:
@@ -81,6 +125,51 @@ def plc_addresses(config: pytest.Config) -> tuple[tuple[str, int], ...]:
     return ((host, 502 if port is None else port),)
 
 
+@dataclass(frozen=True)
+class ProgramOptions:
+    """What the command line and the ini file say about the user's program."""
+
+    files: tuple[Path, ...]  # empty: no program given
+    library: bool
+    signature: str | None
+    scan_counter: str | None
+    option: str  # where the files came from, for messages
+
+
+def program_options(config: pytest.Config) -> ProgramOptions:
+    """--plc-program and friends, else the ini file's plc_program and friends; the files are
+    checked to exist (a usage error names the first that does not)."""
+    given: list[str] | None = config.getoption("--plc-program")
+    if given:
+        files = [Path(p) for p in given]
+        option = "--plc-program"
+    else:
+        files = [Path(p) for p in config.getini("plc_program")]
+        option = "plc_program (ini)"
+    expanded: list[Path] = []
+    for path in files:
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() == ".st")
+            if not found:
+                raise pytest.UsageError(f"{option}: {path} holds no .st file (test paths go "
+                                        "before --plc-program)")
+            expanded += found
+        elif not path.is_file():
+            raise pytest.UsageError(f"{option}: no such file: {path}")
+        elif path.suffix.lower() != ".st":
+            raise pytest.UsageError(f"{option}: {path} is not an .st file (test paths go "
+                                    "before --plc-program)")
+        else:
+            expanded.append(path)
+    no_library = config.getoption("--plc-no-library")
+    if no_library is None:
+        no_library = bool(config.getini("plc_no_library"))
+    signature = config.getoption("--plc-signature") or config.getini("plc_signature") or None
+    counter = config.getoption("--plc-scan-counter") or config.getini("plc_scan_counter") \
+        or None
+    return ProgramOptions(tuple(expanded), not no_library, signature, counter, option)
+
+
 def _worker(config: pytest.Config) -> tuple[int, int]:
     """(index, count) of this pytest-xdist worker; (0, 1) without xdist."""
     info: dict[str, Any] | None = getattr(config, "workerinput", None)
@@ -97,6 +186,7 @@ def _xdist_workers(config: pytest.Config) -> int:
 
 def pytest_configure(config: pytest.Config) -> None:
     addresses = plc_addresses(config)
+    program_options(config)  # a missing --plc-program file is a usage error before any test
     if hasattr(config, "workerinput"):
         return
     workers = _xdist_workers(config)
@@ -110,8 +200,20 @@ def pytest_configure(config: pytest.Config) -> None:
     config.pluginmanager.register(_SweepReporter(config, max(workers, 1)), "armbench-sweep")
 
 
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    opts = program_options(config)
+    if not opts.files:
+        return []
+    addresses = plc_addresses(config)
+    where = (f"the PLC at {', '.join(f'{h}:{p}' for h, p in addresses)}" if addresses
+             else "a soft PLC per test module")
+    return [f"armbench: program {', '.join(p.name for p in opts.files)} on {where}"]
+
+
 def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
     """None when a Modbus TCP server answers at host:port, else the reason it does not."""
+    from ..softplc.modbus_client import ModbusError, PlcClient
+
     try:
         with socket.create_connection((host, port), timeout=timeout_s):
             pass
@@ -132,32 +234,69 @@ def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | Non
     return None
 
 
-@pytest.fixture(scope="session")
-def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
-    """This worker's real PLC, checked once: one clear line and the end of the session when
-    it does not answer, instead of every test failing with the same connection error."""
-    addresses = plc_addresses(request.config)
+def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
+    """None when the PLC at host:port runs the arm controller: it answers a Hello command
+    (claims a mailbox, then gives it back), which needs the controller's register map and its
+    CRC-32 check words; else the reason, in one line. The tests would write commands to this
+    PLC anyway; this writes one Hello and one Close."""
+    from ..controller_client import ArmControllerClient, HandshakeError, NoFreeMailbox
+    from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
+
+    try:
+        with PlcClient(host, port, timeout_s=timeout_s) as client, \
+                ArmControllerClient(client, timeout_s=timeout_s) as ctl:
+            ctl.open()
+    except NoFreeMailbox:
+        return ("has no free mailbox of the arm controller, or does not run it: every "
+                "answer block shows another session")
+    except (HandshakeError, ModbusError, ModbusIoError):
+        return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
+                f"command within {timeout_s:g} s (upload plc_project/openplc/arm_controller.st)")
+    return None
+
+
+def _worker_plc(config: pytest.Config) -> tuple[str, int, str] | None:
+    """(host, port, the option that named it) of this worker's real PLC; None: soft PLCs."""
+    addresses = plc_addresses(config)
     if not addresses:
         return None
-    index, _count = _worker(request.config)
+    index, _count = _worker(config)
     # pytest_configure refused more workers than addresses without --plc-share; a worker
     # xdist started later to replace a crashed one can still number past the list
-    if index >= len(addresses) and not request.config.getoption("--plc-share"):
+    if index >= len(addresses) and not config.getoption("--plc-share"):
         pytest.exit(f"armbench: pytest-xdist worker gw{index} has no PLC address of its own "
                     f"({len(addresses)} given with --plc-address); add --plc-share to let "
                     f"workers share", returncode=pytest.ExitCode.USAGE_ERROR)
     host, port = addresses[index % len(addresses)]
-    option = "--plc-address" if request.config.getoption("--plc-address") else \
-        "--plc-host/--plc-port"
+    option = "--plc-address" if config.getoption("--plc-address") else "--plc-host/--plc-port"
     reason = probe(host, port)
     if reason is not None:
         pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) does not "
                     f"answer: {reason}", returncode=pytest.ExitCode.USAGE_ERROR)
+    return host, port, option
+
+
+@pytest.fixture(scope="session")
+def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
+    """This worker's real PLC for the controller fixtures, checked once: one clear line and
+    the end of the session when it does not answer Modbus or does not run the controller,
+    instead of every test failing with the same connection error or handshake timeout."""
+    found = _worker_plc(request.config)
+    if found is None:
+        return None
+    host, port, option = found
+    reason = controller_probe(host, port)
+    if reason is not None:
+        pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
+                    returncode=pytest.ExitCode.USAGE_ERROR)
     return host, port
 
 
 @pytest.fixture(scope="module")
 def plc_address(_real_plc: tuple[str, int] | None) -> Iterator[tuple[str, int]]:
+    """``(host, port)`` of the PLC running the arm controller: this worker's
+    ``--plc-address`` entry (checked once per session), else a soft PLC running the packaged
+    controller on a free loopback port, started for the test module."""
     if _real_plc is not None:
         yield _real_plc
         return
@@ -169,6 +308,11 @@ def plc_address(_real_plc: tuple[str, int] | None) -> Iterator[tuple[str, int]]:
 
 @pytest.fixture
 def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
+    """An ArmControllerClient of the controller at ``plc_address``, on a connection of its
+    own; it claims a mailbox at its first command and gives it back after the test."""
+    from ..controller_client import ArmControllerClient
+    from ..softplc.modbus_client import PlcClient
+
     host, port = plc_address
     with PlcClient(host, port) as client, ArmControllerClient(client) as ctl:
         # One request before the test starts: a PLC that takes new connections one at a time
@@ -179,6 +323,12 @@ def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
 
 @pytest.fixture
 def motion_recorder(plc_address: tuple[str, int]) -> Iterator[Callable[[], MotionRecorder]]:
+    """A factory of MotionRecorders of the controller at ``plc_address``: each records the
+    motion registers once per scan (one FC3 read tagged with the PLC's ScanCount) on its own
+    connection, from ``start()`` to ``stop()``; any still recording are stopped after the
+    test."""
+    from ..controller_client import MotionRecorder
+
     made: list[MotionRecorder] = []
 
     def make() -> MotionRecorder:
@@ -209,6 +359,147 @@ def record_points(request: pytest.FixtureRequest) -> Iterator[Callable[..., None
         request.node.user_properties[:] = props
 
     yield record
+
+
+# -- the user's own program ----------------------------------------------------------------
+
+
+def _load_or_exit(files: Sequence[Path], *, library: bool, signature: str | None,
+                  scan_counter: str | None, option: str) -> PlcProgram:
+    """The checked program; its diagnostics (or why it cannot be tested over Modbus) end the
+    session instead of failing every test with them."""
+    from ..compiler.diagnostics import CompileFailed
+    from .program import PlcProgram, ProgramError
+
+    try:
+        return PlcProgram.load(files, library=library, signature=signature,
+                               scan_counter=scan_counter)
+    except CompileFailed as exc:
+        hint = ("\narmbench: note: compiled together with the armbench ST library; "
+                "--plc-no-library (plc_no_library = true in the ini file) leaves it out"
+                if library else "")
+        pytest.exit(f"armbench: {option} does not compile:\n{exc}{hint}",
+                    returncode=pytest.ExitCode.USAGE_ERROR)
+    except ProgramError as exc:
+        pytest.exit(f"armbench: {option}: {exc}", returncode=pytest.ExitCode.USAGE_ERROR)
+
+
+@pytest.fixture(scope="session")
+def plc_program(request: pytest.FixtureRequest) -> PlcProgram:
+    """The program given with ``--plc-program FILE.st ...`` (or ``plc_program`` in the ini
+    file), checked once: its located variables by name (``.variables``, ``.variable(name)``),
+    its ``signature`` (a located integer ``Signature`` with a non-zero initial value: a PLC
+    found by address must hold that value there) and ``scan_counter`` (a located
+    ``ScanCount`` the program increments every scan)."""
+    opts = program_options(request.config)
+    if not opts.files:
+        pytest.exit("armbench: the plc_program, program_plc, plc_vars and modbus fixtures "
+                    "need your program: --plc-program FILE.st (or plc_program = FILE.st in "
+                    "the ini file)", returncode=pytest.ExitCode.USAGE_ERROR)
+    return _load_or_exit(opts.files, library=opts.library, signature=opts.signature,
+                         scan_counter=opts.scan_counter, option=opts.option)
+
+
+@pytest.fixture(scope="session")
+def _real_program_plc(request: pytest.FixtureRequest,
+                      plc_program: PlcProgram) -> tuple[str, int] | None:
+    """This worker's real PLC for the program fixtures, checked once: it answers Modbus,
+    holds the program's signature and its scan counter moves; otherwise one line ends the
+    session."""
+    found = _worker_plc(request.config)
+    if found is None:
+        return None
+    host, port, option = found
+    from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
+    from .program import check_identity
+
+    try:
+        with PlcClient(host, port, timeout_s=PROBE_TIMEOUT_S) as client:
+            reason = check_identity(client, plc_program, PROBE_TIMEOUT_S)
+    except (ModbusError, ModbusIoError) as exc:
+        reason = f"answers Modbus, but reading {plc_program.name}'s variables fails ({exc})"
+    if reason is not None:
+        pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
+                    returncode=pytest.ExitCode.USAGE_ERROR)
+    if plc_program.signature is None:
+        warnings.warn(ProgramIdentityWarning(
+            f"{plc_program.name} declares no Signature variable: nothing checks that the PLC "
+            f"at {host}:{port} runs it (declare e.g. `Signature AT %MD0 : UDINT := "
+            "16#5EED0001;`)"), stacklevel=1)
+    return host, port
+
+
+class ProgramIdentityWarning(pytest.PytestWarning):
+    """A PLC found by address could not be checked to run the program under test."""
+
+
+@pytest.fixture(scope="module")
+def program_plc(plc_program: PlcProgram,
+                _real_program_plc: tuple[str, int] | None) -> Iterator[ProgramPlc]:
+    """The PLC running ``plc_program``: with ``--plc-address`` this worker's PLC (checked
+    once per session), else a soft PLC started for the test module on a free loopback port.
+    ``.address``; on the soft PLC also ``.set_input(name, value)`` (inputs, as its I/O would
+    write them), ``.scans()`` and ``.fault()``."""
+    from .program import ProgramPlc, serve_program
+
+    if _real_program_plc is not None:
+        host, port = _real_program_plc
+        found = ProgramPlc(host, port, plc_program)
+        try:
+            yield found
+        finally:
+            found.close()
+        return
+    with serve_program(plc_program) as running:
+        yield running
+
+
+@pytest.fixture
+def modbus(program_plc: ProgramPlc) -> Iterator[PlcClient]:
+    """A plain Modbus TCP client (PlcClient: read_coils, read_holding_registers,
+    write_registers, read_real, ...) connected to ``program_plc`` for this test."""
+    from ..softplc.modbus_client import PlcClient
+
+    with PlcClient(*program_plc.address) as client:
+        client.read_holding_registers(0, 1)  # served before the test starts (see ``plc``)
+        yield client
+
+
+@pytest.fixture
+def plc_vars(program_plc: ProgramPlc) -> Iterator[PlcVariables]:
+    """Typed access to ``program_plc``'s located variables by name: ``plc_vars["Level"]``
+    reads, ``plc_vars["Level"] = 12.5`` writes (type and address from the declaration),
+    ``plc_vars.write(A=1, B=2.0)`` in one request, ``plc_vars.wait_scans(n)``,
+    ``plc_vars.wait_until(name, value_or_predicate)``."""
+    with program_plc.connect() as v:
+        yield v
+
+
+@dataclass
+class SoftPlcFactory:
+    """``soft_plc(*files, library=True, signature=None, scan_counter=None)``: compile the
+    files and start a soft PLC running them; returns its ProgramPlc."""
+
+    stack: contextlib.ExitStack[bool | None] = field(default_factory=contextlib.ExitStack)
+
+    def __call__(self, *files: str | Path, library: bool = True,
+                 signature: str | None = None, scan_counter: str | None = None) -> ProgramPlc:
+        from .program import PlcProgram, serve_program
+
+        program = PlcProgram.load(files, library=library, signature=signature,
+                                  scan_counter=scan_counter)
+        return self.stack.enter_context(serve_program(program))
+
+
+@pytest.fixture
+def soft_plc() -> Iterator[SoftPlcFactory]:
+    """A factory of soft PLCs: ``plc = soft_plc("counter.st", library=False)`` compiles the
+    files (with the armbench ST library unless ``library=False``), runs them with a Modbus
+    server on a free loopback port and returns the ProgramPlc (``plc.connect()`` gives typed
+    access, ``plc.address`` the address); every one is stopped after the test."""
+    factory = SoftPlcFactory()
+    with factory.stack:
+        yield factory
 
 
 @dataclass(eq=False)  # pluggy keeps plugins in sets: identity hash

@@ -1,0 +1,591 @@
+"""A user's own ST program under test: its located variables by name, typed from their
+declarations and addressed by OpenPLC's Modbus map; a soft PLC running it on a loopback port;
+and the check that a PLC found by address runs it.
+
+Used by the pytest plugin (:mod:`armbench.harness.pytest_plugin`), which imports this module
+only when a test asks for one of its fixtures; usable on its own too::
+
+    program = PlcProgram.load(["tank.st"])
+    with serve_program(program) as plc, plc.connect() as v:
+        v["LevelPct"] = 12.5
+        v.wait_scans(1)
+        assert v["Pump"] is True
+
+Identity: a program that declares a located integer variable named ``Signature`` (or the name
+given as ``signature``) with a non-zero literal initial value, e.g. ``Signature AT %MD0 :
+UDINT := 16#7A4B0001;``, is recognised by it: a PLC whose variable at that place holds another
+value runs another program (or another version of it). A program that declares a located
+``ScanCount`` (or ``scan_counter``) it increments once per scan gets scan-based waiting on any
+PLC, and a PLC whose counter does not move is reported as stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import struct
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..compiler.symbols import CheckedProgram, VarSym
+    from ..softplc.modbus_client import PlcClient
+    from ..softplc.modbus_server import ModbusServer
+    from ..softplc.scan import SoftPlc
+
+Value = bool | int | float
+
+DEFAULT_SIGNATURE = "Signature"
+DEFAULT_SCAN_COUNTER = "ScanCount"
+
+# ST type -> (struct format of its bit pattern, most significant word first). BOOL travels as
+# a coil or discrete input, not in registers.
+_FORMATS: dict[str, str] = {
+    "INT": ">h", "UINT": ">H", "WORD": ">H",
+    "DINT": ">i", "UDINT": ">I", "DWORD": ">I", "REAL": ">f",
+    "LINT": ">q", "ULINT": ">Q", "LWORD": ">Q", "LREAL": ">d",
+}
+_INTEGER_TYPES = frozenset({"INT", "UINT", "WORD", "DINT", "UDINT", "DWORD", "LINT", "ULINT",
+                            "LWORD"})
+# FC16 carries at most 123 registers (Modbus) and OpenPLC answers FC3 with at most 127.
+_MAX_WRITE_REGS = 123
+
+
+class ProgramError(Exception):
+    """The program, or what a test asked of it, does not fit; the message says how to fix it."""
+
+
+class UnknownVariable(ProgramError, KeyError):
+    """No located variable of that name in the program."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0])
+
+
+class ReadOnlyVariable(ProgramError):
+    """An input (%IX, %IW): Modbus reads it, only the PLC's I/O writes it."""
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One located variable as seen over Modbus (OpenPLC's map, docs/modbus-parity.md)."""
+
+    name: str
+    st_type: str  # elementary type, upper case
+    location: str  # "%MD2"
+    table: str  # "coil" | "discrete" | "input" | "holding"
+    address: int  # first Modbus address (0-based)
+    count: int  # bits or registers it takes
+    instance: str | None  # the program instance declaring it; None for a global
+    description: str  # the comment on its declaration line
+
+    @property
+    def writable(self) -> bool:
+        """Coils (%QX) and holding registers (%QW, %MW, %MD, %ML); inputs are read-only."""
+        return self.table in ("coil", "holding")
+
+    def encode(self, value: Value) -> list[int]:
+        """The registers of ``value`` in OpenPLC's word order; TypeError/ValueError when the
+        value does not fit the variable's type."""
+        fmt = self._format()
+        if self.st_type in _INTEGER_TYPES:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise TypeError(f"{self.name} is {self.st_type}: give an int, not "
+                                f"{type(value).__name__} {value!r}")
+            bits = 16 * self.count
+            low, high = ((-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if fmt[1].islower()
+                         else (0, (1 << bits) - 1))
+            if not low <= value <= high:
+                raise ValueError(f"{self.name} is {self.st_type} ({low}..{high}): {value} "
+                                 "does not fit")
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"{self.name} is {self.st_type}: give a number, not "
+                                f"{type(value).__name__} {value!r}")
+            if (self.st_type == "REAL" and math.isfinite(value)
+                    and abs(value) > 3.4028234663852886e38):
+                raise ValueError(f"{self.name} is REAL: {value} is beyond its range")
+        data = struct.pack(fmt, value)
+        return list(struct.unpack(f">{self.count}H", data))
+
+    def decode(self, words: Sequence[int]) -> Value:
+        value: Value = struct.unpack(self._format(), struct.pack(f">{self.count}H", *words))[0]
+        return value
+
+    def _format(self) -> str:
+        fmt = _FORMATS.get(self.st_type)
+        if fmt is None or self.table in ("coil", "discrete"):
+            raise TypeError(f"{self.name} ({self.st_type} at {self.location}) has no Modbus "
+                            "register encoding that OpenPLC and the bench share")
+        return fmt
+
+
+@dataclass(frozen=True)
+class Signature:
+    """The program's identity: a located integer variable and its declared initial value."""
+
+    variable: Variable
+    value: int
+
+
+@dataclass(frozen=True)
+class PlcProgram:
+    """The program a PLC under test runs: the ST files, the map of its located variables by
+    (case-insensitive) name, its identity and scan counter when it declares them."""
+
+    given: tuple[Path, ...]  # the user's files
+    files: tuple[Path, ...]  # what is compiled: the user's files, then library files
+    variables: Mapping[str, Variable]  # upper-case name (or INSTANCE.NAME) -> variable
+    unreachable: Mapping[str, str]  # upper-case name -> location Modbus cannot reach
+    signature: Signature | None
+    scan_counter: Variable | None
+    scan_task: str  # the TASK of the first program instance: what "a scan" means
+    scan_interval_ns: int
+    notes: tuple[str, ...] = ()  # library files left out, and why
+    checked: CheckedProgram | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def name(self) -> str:
+        """The user's files, for messages: ``tank.st`` or ``a.st, b.st``."""
+        return ", ".join(p.name for p in self.given)
+
+    @classmethod
+    def load(cls, files: Sequence[str | Path], *, library: bool = True,
+             signature: str | None = None, scan_counter: str | None = None) -> PlcProgram:
+        """Check ``files`` (with the armbench ST library, as ``armbench run`` does, unless
+        ``library`` is False) and read the map from their declarations. ``signature`` and
+        ``scan_counter`` name those variables when they are not called ``Signature`` and
+        ``ScanCount``; a name given here must exist. Raises CompileFailed with the
+        diagnostics when the files do not check, ProgramError when the program cannot be
+        tested over Modbus."""
+        from ..compiler.diagnostics import CompileFailed
+        from ..compiler.driver import analyse, expand
+
+        given = tuple(expand(files))
+        if not given:
+            raise ProgramError(f"no .st files in {', '.join(map(str, files))}")
+        missing = [str(p) for p in given if not p.is_file()]
+        if missing:
+            raise ProgramError(f"no such file: {', '.join(missing)}")
+        compiled, notes = _with_library(given) if library else (given, ())
+        checked, diags = analyse(compiled)
+        if checked is None:
+            raise CompileFailed(diags.sorted())
+        return cls.from_checked(checked, given, compiled, notes=notes, signature=signature,
+                                scan_counter=scan_counter)
+
+    @classmethod
+    def from_checked(cls, checked: CheckedProgram, given: Sequence[Path],
+                     compiled: Sequence[Path], *, notes: Sequence[str] = (),
+                     signature: str | None = None,
+                     scan_counter: str | None = None) -> PlcProgram:
+        from ..registermap import program_map
+
+        if checked.config is None or not checked.config.instances:
+            raise ProgramError("the program has no CONFIGURATION with a program instance: a "
+                               "PLC runs CONFIGURATION Config0 / RESOURCE Res0 / TASK / "
+                               "PROGRAM ... WITH")
+        pmap = program_map(checked)
+        spelled = Counter(reg.name.upper() for reg in pmap.registers)
+        variables: dict[str, Variable] = {}
+        for reg, inst in zip(pmap.registers, pmap.instances, strict=True):
+            var = Variable(reg.name, reg.st_type.upper(), reg.location, reg.table, reg.address,
+                           reg.count, inst, reg.description)
+            if spelled[reg.name.upper()] == 1:  # else reached as INSTANCE.NAME only
+                variables[reg.name.upper()] = var
+            if inst is not None:
+                variables[f"{inst.upper()}.{reg.name.upper()}"] = var
+        first = checked.config.instances[0]
+        task = next((t for t in checked.config.tasks
+                     if first.task is not None and t.name.upper() == first.task.upper()),
+                     checked.config.tasks[0])
+        sig = _signature(checked, variables, signature)
+        counter = _scan_counter(variables, scan_counter)
+        return cls(tuple(given), tuple(compiled), variables,
+                   {u.name.upper(): u.location for u in pmap.unreachable}, sig, counter,
+                   task.name, task.interval_ns, tuple(notes), checked)
+
+    def names(self) -> list[str]:
+        """Every located variable Modbus reaches, once, in declaration order: by its name, or
+        as Instance.Name when two program instances declare that name."""
+        out: list[str] = []
+        seen: set[int] = set()
+        for var in self.variables.values():
+            if id(var) in seen:
+                continue
+            seen.add(id(var))
+            plain = self.variables.get(var.name.upper())
+            out.append(var.name if plain is var else f"{var.instance}.{var.name}")
+        return out
+
+    def variable(self, name: str) -> Variable:
+        """The located variable ``name`` (case-insensitive; Instance.Name also works)."""
+        key = name.upper()
+        var = self.variables.get(key)
+        if var is not None:
+            return var
+        if key in self.unreachable:
+            raise UnknownVariable(
+                f"{name} is located at {self.unreachable[key]}, which OpenPLC does not serve "
+                "over Modbus (it serves %IX %QX %IW %QW %MW %MD %ML)")
+        owners = [f"{v.instance}.{v.name}" for k, v in self.variables.items()
+                  if k.endswith(f".{key}")]
+        if owners:
+            raise UnknownVariable(f"{name} is declared by {len(owners)} program instances: "
+                                  f"say which, {' or '.join(owners)}")
+        names = self.names()
+        near = [n for n in names if key in n.upper() or n.upper() in key]
+        hint = f" (did you mean {', '.join(near[:3])}?)" if near else ""
+        listed = ", ".join(names)
+        raise UnknownVariable(f"{self.name} declares no located variable {name}{hint}; it has "
+                              f"{len(names)}: {listed if len(listed) < 300 else listed[:300]}")
+
+
+def _with_library(given: Sequence[Path]) -> tuple[tuple[Path, ...], tuple[str, ...]]:
+    """The user's files and the armbench library files they do not replace: the selection of
+    ``armbench check/run/serve``, so a program that runs there runs here."""
+    from ..locate import components_used, default_project, with_library
+
+    project = default_project()
+    selection = with_library(list(given), [*project.library(),
+                                           *components_used(given, project.components())])
+    return tuple(selection.files), tuple(selection.notes)
+
+
+def _signature(checked: CheckedProgram, variables: Mapping[str, Variable],
+               name: str | None) -> Signature | None:
+    from ..compiler.ast import Literal
+
+    var = variables.get((name or DEFAULT_SIGNATURE).upper())
+    if var is None:
+        if name is not None:
+            raise ProgramError(f"the program declares no located variable {name} to check "
+                               "its identity by (--plc-signature)")
+        return None
+    sym = _symbol(checked, var)
+    if var.st_type not in _INTEGER_TYPES:
+        raise ProgramError(f"the signature {var.name} is {var.st_type}: declare it as an "
+                           "integer (UDINT, DINT, ...) at a %MD, %MW, %QW or %ML location")
+    init = None if sym is None else sym.init
+    if not isinstance(init, Literal) or init.kind != "int" or int(init.value) == 0:
+        raise ProgramError(f"the signature {var.name} ({var.location}) needs a non-zero "
+                           f"literal initial value, e.g. `{var.name} AT {var.location} : "
+                           f"{var.st_type} := 16#5EED0001;` (0 is what an empty PLC reads)")
+    return Signature(var, int(init.value))
+
+
+def _symbol(checked: CheckedProgram, var: Variable) -> VarSym | None:
+    assert checked.config is not None
+    if var.instance is None:
+        return checked.config.globals.get(var.name.upper())
+    inst = next(i for i in checked.config.instances if i.name == var.instance)
+    return inst.pou.vars.get(var.name.upper())
+
+
+def _scan_counter(variables: Mapping[str, Variable], name: str | None) -> Variable | None:
+    var = variables.get((name or DEFAULT_SCAN_COUNTER).upper())
+    if var is None:
+        if name is not None:
+            raise ProgramError(f"the program declares no located variable {name} to count "
+                               "scans by (--plc-scan-counter)")
+        return None
+    if var.st_type not in _INTEGER_TYPES:
+        raise ProgramError(f"the scan counter {var.name} is {var.st_type}: declare it as an "
+                           "integer the program increments every scan")
+    return var
+
+
+class PlcVariables(Mapping[str, Value]):
+    """Typed access to a program's located variables over Modbus: ``v["Level"]`` reads,
+    ``v["Level"] = 12.5`` writes (BOOL as a coil, the rest in registers, 32/64-bit values in
+    one request), by the names and types the program declares.
+
+    ``scans`` counts the PLC's scans when the program has no scan counter (the soft PLC's
+    own count); ``fault`` reports a soft PLC's fault so a wait does not run into a timeout.
+    """
+
+    def __init__(self, client: PlcClient, program: PlcProgram, *,
+                 scans: Callable[[], int] | None = None,
+                 fault: Callable[[], str | None] | None = None,
+                 owns_client: bool = False) -> None:
+        self.client = client
+        self.program = program
+        self._scans = scans
+        self._fault = fault
+        self._owns_client = owns_client
+
+    def __enter__(self) -> PlcVariables:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._owns_client:
+            self.client.close()
+
+    # -- Mapping -----------------------------------------------------------------------------
+
+    def __getitem__(self, name: str) -> Value:
+        return self.read_variable(self.program.variable(name))
+
+    def __setitem__(self, name: str, value: Value) -> None:
+        self.write({name: value})
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.program.names())
+
+    def __len__(self) -> int:
+        return len(self.program.names())
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name.upper() in self.program.variables
+
+    # -- reads and writes --------------------------------------------------------------------
+
+    def read_variable(self, var: Variable) -> Value:
+        c = self.client
+        if var.table == "coil":
+            return bool(c.read_coils(var.address, 1)[0])
+        if var.table == "discrete":
+            return bool(c.read_discrete_inputs(var.address, 1)[0])
+        if var.table == "input":
+            return var.decode(c.read_input_registers(var.address, var.count))
+        return var.decode(c.read_holding_registers(var.address, var.count))
+
+    def read(self, *names: str) -> dict[str, Value]:
+        """Several variables by name (every one when no name is given), one request each."""
+        return {n: self[n] for n in (names or tuple(self))}
+
+    def write(self, values: Mapping[str, Value] | None = None, /, **named: Value) -> None:
+        """Write variables by name; neighbours in one table go in one request (function 15
+        or 16, which OpenPLC applies between two scans), so a scan sees all or none of them.
+        Every value is checked against its variable's type before anything is sent."""
+        items = [*(values or {}).items(), *named.items()]
+        coils: list[tuple[int, bool]] = []
+        regs: list[tuple[int, list[int]]] = []
+        for name, value in items:
+            var = self.program.variable(name)
+            if not var.writable:
+                raise ReadOnlyVariable(
+                    f"{var.name} at {var.location} is an input: Modbus reads it, the PLC's I/O "
+                    "writes it (on the soft PLC, ProgramPlc.set_input writes it)")
+            if var.table == "coil":
+                if not isinstance(value, bool):
+                    raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
+                coils.append((var.address, value))
+            else:
+                regs.append((var.address, var.encode(value)))
+        for address, run in _runs([(a, [v]) for a, v in coils]):
+            self.client.write_coils(address, run)
+        for address, run in _runs(regs, limit=_MAX_WRITE_REGS):
+            self.client.write_registers(address, run)
+
+    # -- waiting -----------------------------------------------------------------------------
+
+    def scan_count(self) -> int:
+        """The PLC's scans so far: the program's scan counter, else the soft PLC's count."""
+        counter = self.program.scan_counter
+        if counter is not None:
+            value = self.read_variable(counter)
+            return int(value) % (1 << (16 * counter.count))
+        if self._scans is not None:
+            return self._scans()
+        raise ProgramError(
+            f"{self.program.name} declares no scan counter, so scans of a PLC found by address "
+            f"cannot be counted: declare e.g. `{DEFAULT_SCAN_COUNTER} AT %MD1 : UDINT;` and "
+            f"`{DEFAULT_SCAN_COUNTER} := {DEFAULT_SCAN_COUNTER} + 1;` in the program, or use "
+            "wait_until")
+
+    def wait_scans(self, scans: int = 1, timeout_s: float = 5.0) -> None:
+        """Return once the PLC has run ``scans`` whole scans after the call: after a write,
+        ``wait_scans(1)`` means the program has run on the new value at least once (a write
+        lands between two scans). Raises TimeoutError when the PLC stops scanning."""
+        if scans < 0:
+            raise ValueError(f"cannot wait for {scans} scans")
+        counter = self.program.scan_counter
+        modulus = 1 << (16 * counter.count) if counter is not None else 1 << 64
+        start = self.scan_count()
+        deadline = time.monotonic() + timeout_s
+        pause = min(0.002, self.program.scan_interval_ns / 4e9)
+        while (self.scan_count() - start) % modulus < scans:
+            self._raise_fault()
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"the PLC ran fewer than {scans} scans in {timeout_s:g} s "
+                                   f"({self.program.name}: is it running?)")
+            time.sleep(pause)
+
+    def wait_until(self, name: str, condition: Callable[[Value], bool] | Value,
+                   timeout_s: float = 5.0) -> Value:
+        """Poll ``name`` until it equals ``condition`` (or ``condition(value)`` holds);
+        returns the value. Raises TimeoutError with the last value read."""
+        test: Callable[[Value], bool] = (condition if callable(condition)
+                                         else lambda v: v == condition)
+        var = self.program.variable(name)
+        deadline = time.monotonic() + timeout_s
+        pause = min(0.005, self.program.scan_interval_ns / 2e9)
+        while True:
+            value = self.read_variable(var)
+            if test(value):
+                return value
+            self._raise_fault()
+            if time.monotonic() > deadline:
+                what = "the condition" if callable(condition) else repr(condition)
+                raise TimeoutError(f"{var.name} is {value!r} after {timeout_s:g} s, waiting "
+                                   f"for {what}")
+            time.sleep(pause)
+
+    def _raise_fault(self) -> None:
+        reason = self._fault() if self._fault is not None else None
+        if reason is not None:
+            raise ProgramError(f"the soft PLC running {self.program.name} is in FAULT: {reason}")
+
+
+def _runs(items: Sequence[tuple[int, list[Any]]],
+          limit: int = 1968) -> Iterator[tuple[int, list[Any]]]:
+    """Values at addresses merged into runs of neighbours (at most ``limit`` long)."""
+    start = -1
+    run: list[Any] = []
+    for address, values in sorted(items, key=lambda item: item[0]):
+        if run and address == start + len(run) and len(run) + len(values) <= limit:
+            run += values
+            continue
+        if run:
+            yield start, run
+        start, run = address, list(values)
+    if run:
+        yield start, run
+
+
+def check_identity(client: PlcClient, program: PlcProgram, timeout_s: float = 3.0) -> str | None:
+    """None when the PLC on ``client`` runs ``program`` as far as its signature and scan
+    counter tell (nothing to tell: None); else why not, in one line."""
+    v = PlcVariables(client, program)
+    sig = program.signature
+    if sig is not None:
+        seen = v.read_variable(sig.variable)
+        if seen != sig.value:
+            return (f"runs another program (or another version of {program.name}): "
+                    f"{sig.variable.name} at {sig.variable.location} reads "
+                    f"{_show(seen, sig.value)}, {program.name} declares {_show(sig.value)}")
+    counter = program.scan_counter
+    if counter is not None:
+        first = v.scan_count()
+        deadline = time.monotonic() + timeout_s
+        while v.scan_count() == first:
+            if time.monotonic() > deadline:
+                return (f"does not scan {program.name}: its scan counter {counter.name} "
+                        f"({counter.location}) stays at {first} for {timeout_s:g} s")
+            time.sleep(min(0.01, program.scan_interval_ns / 2e9))
+    return None
+
+
+def _show(value: Value, like: Value | None = None) -> str:
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 0 and \
+            (like is None or isinstance(like, int)):
+        return f"16#{value:X}"
+    return repr(value)
+
+
+# -- a soft PLC running the program -------------------------------------------------------------
+
+
+@dataclass
+class ProgramPlc:
+    """A PLC running a :class:`PlcProgram`: a soft PLC this process started (``soft``) or a
+    PLC found by address."""
+
+    host: str
+    port: int
+    program: PlcProgram
+    soft: SoftPlc | None = None
+    _clients: list[PlcVariables] = field(default_factory=list, repr=False)
+
+    @property
+    def address(self) -> tuple[str, int]:
+        return self.host, self.port
+
+    def connect(self, timeout_s: float = 3.0) -> PlcVariables:
+        """Typed access on a connection of its own (closed by ``with`` or :meth:`close`)."""
+        from ..softplc.modbus_client import PlcClient
+
+        client = PlcClient(self.host, self.port, timeout_s=timeout_s)
+        client.connect()
+        v = PlcVariables(client, self.program, owns_client=True,
+                         scans=self.scans if self.soft is not None else None,
+                         fault=self.fault if self.soft is not None else None)
+        self._clients.append(v)
+        return v
+
+    def close(self) -> None:
+        """Close the connections :meth:`connect` opened."""
+        for v in self._clients:
+            v.__exit__()
+        self._clients.clear()
+
+    def scans(self) -> int:
+        """The soft PLC's scans of the program's task so far (:attr:`PlcProgram.scan_task`)."""
+        stats = self._soft().stats()
+        task = self.program.scan_task.upper()
+        return next(st.scans for name, st in stats.items() if name.upper() == task)
+
+    def fault(self) -> str | None:
+        """The soft PLC's fault as ``file:line:col: message``, None while it runs."""
+        info = self._soft().fault
+        return None if info is None else f"{info.location}: {info.message}"
+
+    def set_input(self, name: str, value: Value) -> None:
+        """Soft PLC only: write an input (%IX, %IW), as the PLC's I/O would, between scans."""
+        var = self.program.variable(name)
+        plc = self._soft()
+        if var.table == "discrete":
+            if not isinstance(value, bool):
+                raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
+            with plc.lock:
+                plc.image.ix[var.address] = int(value)
+        elif var.table == "input":
+            (word,) = var.encode(value)
+            with plc.lock:
+                plc.image.iw[var.address] = word
+        else:
+            raise ProgramError(f"{var.name} at {var.location} is not an input: write it over "
+                               "Modbus (plc_vars[name] = value)")
+
+    def _soft(self) -> SoftPlc:
+        if self.soft is None:
+            raise ProgramError(f"the PLC at {self.host}:{self.port} was found by address: only "
+                               "a soft PLC this process runs has this")
+        return self.soft
+
+
+@contextlib.contextmanager
+def serve_program(program: PlcProgram, host: str = "127.0.0.1",
+                  port: int = 0) -> Iterator[ProgramPlc]:
+    """Compile ``program``, run it in a soft PLC (real-time thread) with its Modbus server on
+    ``host:port`` (0: a free port); stops both on exit."""
+    from ..compiler.build import build
+    from ..compiler.emit_c import emit
+    from ..compiler.ffi import Module
+    from ..softplc.loader import LoadedProgram
+    from ..softplc.modbus_server import ModbusServer
+    from ..softplc.scan import SoftPlc
+
+    checked = program.checked
+    if checked is None:
+        raise ProgramError("the program was not checked: build it with PlcProgram.load")
+    unit = emit(checked)
+    loaded = LoadedProgram(Module(checked, unit, build(unit).path))
+    plc = SoftPlc(loaded)
+    server: ModbusServer = ModbusServer(loaded.image, plc.lock, host=host, port=port)
+    server.start()
+    running = ProgramPlc(host, server.port, program, plc)
+    try:
+        plc.start()
+        try:
+            yield running
+        finally:
+            running.close()
+            plc.stop()
+    finally:
+        server.stop()
