@@ -75,7 +75,8 @@ def pose_st(T: NDArray[np.float64], scale: float) -> list[list[float]]:
     """A toolbox pose (4x4, metres) as a Mat4 in mm."""
     out = np.array(T, dtype=float)
     out[:3, 3] *= scale
-    return out.tolist()
+    rows: list[list[float]] = out.tolist()
+    return rows
 
 
 def rotation_angle_deg(Ra: NDArray[np.float64], Rb: NDArray[np.float64]) -> float:
@@ -127,3 +128,25 @@ def puma_case(seed_offset: float) -> PumaCase:
     return PumaCase(robot=robot, chain=chain_of(robot, MM_PER_M), qt=qt,
                     target=pose_st(robot.fkine(qt).A, MM_PER_M),
                     seed=joints_st(robot, qt + seed_offset, MM_PER_M))
+
+
+def puma_folded_elbow_set(robot: Any, n: int, spread: float, seed: int
+                          ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """``n`` Puma 560 targets ``qt`` (rad) within 1e-4..5e-2 rad of the folded elbow, each with a
+    seed ``q0`` within +/-``spread`` rad of it in every joint, from ``numpy``'s generator
+    ``seed``.
+
+    The elbow is singular where the wrist centre's distance from the shoulder is extremal,
+    tan q3 = -d4 / a3 (closed form): stretched where cos q3 > 0, folded (the wrist centre
+    nearest the shoulder) where cos q3 < 0. The folded elbow lies beyond the real arm's q3
+    limits; the other joints are drawn within theirs.
+    """
+    a3, d4 = float(robot.links[2].a), float(robot.links[3].d)
+    folded = math.atan2(d4, -a3)
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        qt = rng.uniform(robot.qlim[0], robot.qlim[1])
+        qt[2] = folded + 10.0 ** rng.uniform(-4.0, -1.3) * rng.choice([-1.0, 1.0])
+        out.append((qt, qt + rng.uniform(-spread, spread, robot.n)))
+    return out
