@@ -45,7 +45,8 @@ NOT_OURS = {
     # the OpenPLC Editor's project file, the OpenPLC runtime's own files, MatIEC's library
     "plc.xml", "./install.sh", "./core/psm/main.py", "core/psm/main.py",
     "webserver/core/psm/main.py", "webserver/core/psm/psm.py",
-    "bistable.txt", "edge_detection.txt", "pid_st.txt", "timer.txt",
+    "bistable.txt", "edge_detection.txt", "pid_st.txt", "timer.txt", "background_installer.sh",
+    "run-st.sh",  # the MatIEC run script a user provides (MATIEC_RUN)
     # a script's argument placeholder
     "FILE.st",
     # written by a command the page gives (the demo, docs/raspberry-pi.md's export)
