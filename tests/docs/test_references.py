@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ast
 import fnmatch
+import os
 import re
 from collections.abc import Iterator
 from functools import cache
@@ -58,9 +59,14 @@ NOT_OURS = {
 
 @cache
 def _repo_files() -> tuple[str, ...]:
-    skip = {".git", ".venv", ".venv-lowest", "build", "__pycache__", "out"}
-    return tuple(p.relative_to(REPO).as_posix() for p in REPO.rglob("*")
-                 if not skip.intersection(p.relative_to(REPO).parts))
+    skip = {".git", ".venv", ".venv-lowest", "build", "__pycache__", "out", ".mypy_cache",
+            ".ruff_cache", ".pytest_cache"}
+    found = []
+    for folder, dirs, files in os.walk(REPO):
+        dirs[:] = [d for d in dirs if d not in skip and not d.endswith(".egg-info")]
+        rel = Path(folder).relative_to(REPO)
+        found += [(rel / name).as_posix() for name in (*dirs, *files)]
+    return tuple(found)
 
 
 def named_paths(text: str) -> set[str]:
