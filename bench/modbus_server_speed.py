@@ -8,8 +8,11 @@ running), transactions per second of
 * the soft PLC with its compiled request path (``armbench serve``'s default),
 * the soft PLC with the Python request path (``ModbusServer(fast_path=False)``, the server
   before the fast path),
-* the OpenPLC v3 runtime running ``plc_project/openplc/arm_controller.st``, where
-  ``/opt/realplc/run-openplc.sh`` exists (otherwise a line says it was skipped).
+* the OpenPLC v3 runtime running ``plc_project/openplc/arm_controller.st``, where the
+  environment variable ``OPENPLC_RUN`` names a script that starts it (``OPENPLC_RUN FILE.st
+  PORT``: builds FILE.st into the runtime, serves Modbus TCP on PORT, prints a line with
+  "listening on" once it does, stops the runtime on SIGTERM); otherwise a line says it was
+  skipped and why.
 
 The client writes the batch target registers (BatchX01.., three REALs = 6 holding registers in
 the %MD area), which the controller reads only when a SolveBatch command arrives. All servers
@@ -51,7 +54,6 @@ except ImportError:  # running from a checkout without `pip install -e .`
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT_SOURCE = ROOT / "bench" / "modbus_pairs.c"
-OPENPLC = Path("/opt/realplc/run-openplc.sh")
 OPENPLC_PROGRAM = ROOT / "plc_project" / "openplc" / "arm_controller.st"
 REGISTERS = 6  # three REALs
 
@@ -140,13 +142,16 @@ def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[Server]:
 @contextlib.contextmanager
 def openplc(cpus: set[int] | None) -> Iterator[Server | None]:
     """The real runtime on a free port (None, with the reason printed, where it is absent)."""
-    if not OPENPLC.exists():
-        print(f"OpenPLC runtime: skipped ({OPENPLC} not found; see docs/modbus-parity.md)")
+    script = os.environ.get("OPENPLC_RUN")
+    if not script or not Path(script).is_file():
+        print("OpenPLC runtime: skipped (" + (f"OPENPLC_RUN={script} is no file" if script else
+              "OPENPLC_RUN is not set") + ": set it to a script that starts the OpenPLC v3 "
+              "runtime, `OPENPLC_RUN FILE.st PORT`; see docs/modbus-parity.md)")
         yield None
         return
     port = free_port()
     log = tempfile.TemporaryFile(mode="w+")
-    proc = subprocess.Popen([str(OPENPLC), str(OPENPLC_PROGRAM), str(port)], stdout=log,
+    proc = subprocess.Popen([script, str(OPENPLC_PROGRAM), str(port)], stdout=log,
                             stderr=subprocess.STDOUT, preexec_fn=lambda: pin(cpus))
     try:
         deadline = time.monotonic() + 180
@@ -156,7 +161,8 @@ def openplc(cpus: set[int] | None) -> Iterator[Server | None]:
             if "listening on" in text:
                 break
             if proc.poll() is not None or time.monotonic() > deadline:
-                print(f"OpenPLC runtime: skipped (run-openplc.sh did not start):\n{text[-2000:]}")
+                print(f"OpenPLC runtime: skipped (OPENPLC_RUN={script} did not start):\n"
+                      f"{text[-2000:]}")
                 yield None
                 return
             time.sleep(0.2)

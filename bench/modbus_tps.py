@@ -109,7 +109,7 @@ def serve_pymodbus(conn: Connection, cpus: set[int] | None) -> None:
 
 
 # %MW100: a holding register the controller program does not locate, so a client write
-# stays (DESIGN.md 5.3) while the 10 ms scans run.
+# stays (docs/matiec-facts.md) while the 10 ms scans run.
 SERVE_ADDRESS = 1024 + 100
 ROOT = Path(__file__).resolve().parents[1]
 

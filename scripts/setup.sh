@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set-up shared by the README commands: a C compiler (Debian) and a local virtual environment
-# with the pinned Python packages. Idempotent; safe to run on every invocation.
+# with the Python packages at the locked versions (tests/packaging/constraints-current.txt). Idempotent; safe to run on every invocation.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 need_apt=()
@@ -28,8 +28,9 @@ if [ ! -x .venv/bin/python ]; then
   python3 -m venv .venv
 fi
 stamp=.venv/.armbench-installed
-if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+lock=tests/packaging/constraints-current.txt
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ] || [ "$lock" -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[dev]"
+  .venv/bin/python -m pip install -q -e ".[dev]" -c tests/packaging/constraints-current.txt
   touch "$stamp"
 fi

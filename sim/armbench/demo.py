@@ -1,4 +1,4 @@
-"""``armbench demo``: the 360-point circle of SEEDS document 000, driven over Modbus.
+"""``armbench demo``: the 360-point circle of document 000, driven over Modbus.
 
 Compiles the library and ``plc_project/Controller.st``, runs the soft PLC in real time with
 its Modbus server on a free loopback port, and talks to it only through Modbus. The servo

@@ -1,5 +1,5 @@
 """``armbench demo-imu``: the simulated hand drives the 5-axis arm over Modbus (FollowImu,
-Controller.st IMU COMMANDS 46; SEEDS document 004).
+Controller.st IMU COMMANDS 46; document 004).
 
 The soft PLC runs the controller's 10 ms task in simulated time (as fast as the host allows).
 Before every scan a :class:`HandRig` does what the PSM does on a Raspberry Pi: it writes the

@@ -2,7 +2,7 @@
 ``plc_project/Controller.st`` (the program is the single source of truth).
 
 Each located variable of the program instance becomes a :class:`Register` with its OpenPLC
-Modbus table and address (DESIGN.md §5.3), its ST type and the comment written on its
+Modbus table and address (docs/matiec-facts.md), its ST type and the comment written on its
 declaration line; its group is the ``(* ... *)`` comment that opens its VAR block.
 :func:`render_markdown` produces ``docs/register-map.md``; ``python -m armbench.registermap``
 rewrites it, and a test fails when the file is stale.
@@ -88,7 +88,8 @@ def modbus_location(location: str) -> tuple[str, int, int]:
         return "holding", mm.md_address(n), 2
     if area == "M" and size == "L":
         return "holding", mm.ml_address(n), 4
-    raise ValueError(f"{location} is not reachable over Modbus (DESIGN.md §5.3)")
+    raise ValueError(f"{location} is not reachable over Modbus (OpenPLC v3 maps only %IX, %QX, "
+                     "%IW, %QW, %MW, %MD and %ML; docs/matiec-facts.md)")
 
 
 def _group_and_comment(lines: Sequence[str], line: int) -> tuple[str, str]:
@@ -342,7 +343,7 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "Generated from the located variables of `plc_project/Controller.st` by",
         "`python -m armbench.registermap` -- do not edit; `tests/modbus/test_registermap.py`",
         "fails when this file is stale. Addresses are 0-based Modbus addresses of OpenPLC v3",
-        "(DESIGN.md §5.3); 32-bit values take two registers, most significant word first.",
+        "(docs/matiec-facts.md); 32-bit values take two registers, most significant word first.",
         "The protocol below is the header of `Controller.st`, copied verbatim.",
         "`armbench.controller_client.ArmControllerClient` implements the client side.",
         "",

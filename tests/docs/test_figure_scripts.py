@@ -1,6 +1,6 @@
 """Every figure script under armbench.plots that the docs pages name: run into a temporary
 folder, it writes real PNGs, and each one is shown on its pages, committed under
-docs/figures/, and the pages say which command regenerates it. matplotlib is a pinned
+docs/figures/, and the pages say which command regenerates it. matplotlib is a declared
 dependency: a missing one fails here rather than skipping."""
 
 from __future__ import annotations

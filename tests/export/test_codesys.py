@@ -3,7 +3,7 @@ either addressing scheme, for every located variable of the program, read from t
 generated XML and compared with Controller.st's own declarations.
 
 The two schemes, written out here from their definitions (not from armbench.export.codesys):
-- OpenPLC v3 (DESIGN.md §5.3): one table per kind, %IX/%QX bit 8*byte+bit, %IW, %QW, %MW, %MD,
+- OpenPLC v3 (docs/matiec-facts.md): one table per kind, %IX/%QX bit 8*byte+bit, %IW, %QW, %MW, %MD,
   %ML each indexed by n: two variables clash when kind and index are equal.
 - CODESYS: one byte memory per area I, Q, M; %XWn = bytes 2n..2n+1, %XDn = 4n..4n+3,
   %XLn = 8n..8n+7, %XBn = byte n, %XXb.i = bit i of byte b: two variables clash when they

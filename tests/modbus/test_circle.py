@@ -1,4 +1,4 @@
-"""The seed's task end to end: the 360-point circle of SEEDS document 000, driven point by
+"""The seed's task end to end: the 360-point circle of document 000, driven point by
 point over Modbus (request/acknowledge), through the PCA9685 and MG996R models.
 
 Bounds are derived, not measured: the PLC's FK echo must match the target to REAL precision

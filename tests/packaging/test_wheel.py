@@ -8,8 +8,9 @@ Modbus), `armbench serve --web` (the live view's page from the wheel), `armbench
 controller. Values are checked against math (pi), the numpy reference
 kinematics and the repository's own files.
 
-Needs PyPI or pip's cache (setuptools for the build, the pinned dependencies for the
-install); skips, saying so, only when neither can provide them.
+Needs PyPI or pip's cache (setuptools for the build, the dependencies for the install, at the
+versions of tests/packaging/constraints-current.txt); skips, saying so, only when neither can
+provide them.
 """
 
 from __future__ import annotations
@@ -31,9 +32,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from packaging.requirements import Requirement
 
 REPO = Path(__file__).resolve().parents[2]
-BUILD_INPUTS = ("pyproject.toml", "setup.py", "MANIFEST.in", "sim", "st", "plc_project")
+BUILD_INPUTS = ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md", "LICENSE", "sim", "st",
+                "plc_project")
+LOCK = REPO / "tests" / "packaging" / "constraints-current.txt"
 OFFLINE_SIGNS = ("No matching distribution found", "Could not find a version",
                  "NewConnectionError", "Temporary failure in name resolution",
                  "Network is unreachable", "Failed to establish a new connection")
@@ -89,12 +93,6 @@ class Installed:
         return self.run(str(self.venv / "bin" / "armbench"), *args)
 
 
-def _pinned(name: str) -> str:
-    meta = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
-    return next(d for d in meta["project"]["optional-dependencies"]["dev"]
-                if d.startswith(f"{name}=="))
-
-
 def _require(proc: subprocess.CompletedProcess[str], what: str) -> None:
     if proc.returncode == 0:
         return
@@ -132,7 +130,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     # --no-compile: byte-compiling numpy and matplotlib is most of an install's time
     proc = subprocess.run([*pip, "--python", str(venv / "bin" / "python"), "install", "-q",
-                           "--no-compile", str(wheel), _pinned("pytest")],
+                           "--no-compile", "-c", str(LOCK), str(wheel), "pytest"],
                           capture_output=True, text=True, timeout=900)
     _require(proc, "install the wheel into a fresh venv")
     install_s = time.perf_counter() - t0
@@ -319,3 +317,23 @@ def test_web_view_from_the_installed_package(installed: Installed) -> None:
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_wheel_metadata_carries_the_licence(installed: Installed) -> None:
+    """What pip shows a user: the licence expression and file, the summary, the README as the
+    long description, and dependency ranges (no exact pins)."""
+    dist = next(installed.site.glob("armbench-*.dist-info"))
+    meta = (dist / "METADATA").read_text(encoding="utf-8")
+    assert "\nLicense-Expression: MIT\n" in meta
+    assert "\nLicense-File: LICENSE\n" in meta
+    assert (dist / "licenses" / "LICENSE").read_bytes() == (REPO / "LICENSE").read_bytes()
+    assert "\nSummary: A portable IEC 61131-3 Structured Text library" in meta
+    assert "\nDescription-Content-Type: text/markdown\n" in meta
+    assert "# arm-kinematics PLC library and test bench" in meta
+    requires = re.findall(r"^Requires-Dist: (.*)$", meta, re.M)
+    runtime = [r for r in requires if "extra ==" not in r]
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+    as_dict = {Requirement(r).name: Requirement(r).specifier for r in runtime}
+    assert as_dict == {Requirement(r).name: Requirement(r).specifier
+                       for r in declared["project"]["dependencies"]}
+    assert not any("==" in r for r in runtime), runtime

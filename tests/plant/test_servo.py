@@ -1,4 +1,4 @@
-"""MG996R servo model against the figures of SEEDS document 002 and the MG996R sheet."""
+"""MG996R servo model against the figures of document 002 and the MG996R sheet."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""OpenPLC's Modbus map (DESIGN.md §5.3) through a real pymodbus client against our server.
+"""OpenPLC's Modbus map (docs/matiec-facts.md) through a real pymodbus client against our server.
 
 Expected register values are computed here with struct.pack, independently of the
 armbench.softplc.modbus_map helpers the server and client share.

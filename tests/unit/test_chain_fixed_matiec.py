@@ -1,8 +1,8 @@
 """The fixed-point 003 line and the 5-axis IK on the real MatIEC + OpenPLC runtime.
 
 One PROGRAM runs document 003's line (Reset + 100 steps of ChainResolvedRateFixed) and a
-5-axis IK in its first scan; OpenPLC's own toolchain (MATIEC_CHECK=/opt/realplc/check-st.sh,
-with run-st.sh beside it) and the bench compiler must print the same integers, bit for bit,
+5-axis IK in its first scan; OpenPLC's own toolchain (the scripts MATIEC_CHECK and MATIEC_RUN
+name, see the README) and the bench compiler must print the same integers, bit for bit,
 and REAL joints within float32 rounding. Skips where the real toolchain is absent.
 """
 
@@ -96,8 +96,8 @@ END_CONFIGURATION
 """
 
 
-@pytest.mark.skipif(_run_st() is None, reason="MATIEC_CHECK (e.g. /opt/realplc/check-st.sh) "
-                    "with run-st.sh beside it not set or missing")
+@pytest.mark.skipif(_run_st() is None, reason="MATIEC_RUN (or a run-st.sh beside MATIEC_CHECK) "
+                    "not set or no file: see the README's 'Checking against the real MatIEC'")
 def test_real_matiec_runs_the_003_line_bit_for_bit(tmp_path: Path) -> None:
     from armbench.compiler import compile_files
 

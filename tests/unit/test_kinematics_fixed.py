@@ -37,7 +37,7 @@ IK_POINTS = 20_000
 SEED_REQUIREMENT_DEG = 0.072  # document 000: one stepper step
 GOAL_DEG = 0.01
 TABLE_BYTES_GOAL = 2048
-# A check-st.sh (as /opt/realplc's): `check-st.sh FILE.st` exits 0 iff OpenPLC builds FILE.st.
+# MATIEC_CHECK names a check script: `$MATIEC_CHECK FILE.st` exits 0 iff OpenPLC builds FILE.st.
 MATIEC_CHECK = Path(os.environ.get("MATIEC_CHECK", "/nonexistent/check-st.sh"))
 
 
@@ -438,7 +438,8 @@ def test_fk_fixed_against_float64_and_round_trip(mod: Any) -> None:
 
 # ------------------------------------------------------------------ real MatIEC
 @pytest.mark.skipif(not MATIEC_CHECK.is_file(),
-                    reason="MATIEC_CHECK (e.g. /opt/realplc/check-st.sh) not set or missing")
+                    reason="MATIEC_CHECK not set or no file: set it to a script that builds "
+                           "FILE.st the way OpenPLC v3 does (README)")
 def test_real_matiec_accepts_fixed_library(tmp_path: Path) -> None:
     program = tmp_path / "fixed_main.st"
     program.write_text("""PROGRAM FixedMain

@@ -18,7 +18,7 @@ import pytest
 rtb_traj = pytest.importorskip("roboticstoolbox.tools.trajectory")
 
 NAN, INF = float("nan"), float("inf")
-POS_TOL_DEG = 1e-3  # the bound against the Robotics Toolbox
+POS_TOL_DEG = 1e-3  # the bound against the Robotics Toolbox (docs/motion.md)
 
 # (distance deg, initial velocity deg/s, vmax deg/s, acc deg/s^2): long, short (triangle),
 # negative, blends from a moving start (faster, slower than the cruise speed)

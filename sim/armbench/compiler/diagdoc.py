@@ -15,7 +15,7 @@ Generated from `sim/armbench/compiler/diagnostics.py` by
 Every diagnostic is one line, `file:line:col: error[CODE]: message` (notes, `note[N...]`,
 do not fail the check). `armbench check` ends with a one-line summary. The portability rules
 mirror what MatIEC (the compiler inside OpenPLC) or OpenPLC's C build rejects, as measured on
-the real tools (see DESIGN.md §5.1): code that passes `armbench check` compiles there too.
+the real tools (see docs/matiec-facts.md): code that passes `armbench check` compiles there too.
 
 | code | what it means | what to write instead |
 |---|---|---|

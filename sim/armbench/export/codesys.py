@@ -4,7 +4,7 @@ Needs: a CheckedProgram without errors (its AST: every POU's located VarDecls an
 assignments in its body).
 
 Why a variant: OpenPLC keeps one table per location kind (%IX/%QX bits, %IW, %QW, %MW, %MD,
-%ML: DESIGN.md §5.3), so ``%MW0`` and ``%MD0`` are different variables there; CODESYS
+%ML: docs/matiec-facts.md), so ``%MW0`` and ``%MD0`` are different variables there; CODESYS
 addresses each area (%I, %Q, %M) by byte (``%MWn`` = bytes 2n..2n+1, ``%MDn`` = 4n..4n+3,
 ``%MXb.i`` = bit i of byte b), so the same two overlap.
 

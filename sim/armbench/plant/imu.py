@@ -1,4 +1,4 @@
-"""Simulated hand-held IMU of SEEDS document 004: an MPU6050 (gyro + accelerometer) and an
+"""Simulated hand-held IMU of document 004: an MPU6050 (gyro + accelerometer) and an
 HMC5883L (magnetometer) with aligned axes, read at a fixed rate.
 
 The hand's orientation is known exactly (`HandTrajectory`: Z-Y-X Euler angles that are sums

@@ -7,7 +7,7 @@ the closed form (radial distance and height as sums of link projections), not fr
 Two resolved-rate integrators over the seed's line, both closed loop
 (``dX = X_k - FK(q_(k-1))``, the ST block's rule):
 
-* :func:`track_pinv64` -- float64 with ``numpy.linalg.pinv`` (the reference of the issue);
+* :func:`track_pinv64` -- float64 with ``numpy.linalg.pinv`` (the tests' reference);
 * :func:`track_float32` -- the ST block's algorithm (adjugate of ``J J^T``, determinant,
   ``J^T``) with every value rounded to float32, i.e. what a REAL implementation computes.
 

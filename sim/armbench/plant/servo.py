@@ -1,6 +1,6 @@
 """Kinematic model of a TowerPro MG996R hobby servo driven by a PWM pulse width.
 
-The paper behind the arm (SEEDS document 002) drives MG996R servos at 50 Hz with
+The paper behind the arm (document 002 in docs/sources.md) drives MG996R servos at 50 Hz with
 1.0 ms = -60 deg, 1.5 ms = 0 deg and 2.0 ms = +60 deg. The model maps the pulse width linearly
 through those two end points (configurable), clamps to the mechanical travel, and slews towards
 the commanded angle at the rated no-load speed (0.17 s/60 deg at 4.8 V; 0.14 s/60 deg at 6 V).
@@ -38,7 +38,7 @@ class SignalLoss(enum.Enum):
 
 @dataclass(frozen=True)
 class ServoParams:
-    """Calibration and limits of one servo; the defaults are the MG996R of SEEDS document 002."""
+    """Calibration and limits of one servo; the defaults are the MG996R of document 002."""
 
     pulse_low_us: float = 1000.0
     angle_low_deg: float = -60.0

@@ -1,5 +1,6 @@
-"""PNG plots of a demo run: the only module of the package that imports matplotlib (DESIGN.md
-§2). It uses the non-interactive Agg backend, so it works without a display.
+"""PNG plots of a demo run (matplotlib is imported only under armbench.plots, so the
+compiler, the soft PLC and the CLI start without it). It uses the non-interactive Agg
+backend, so it works without a display.
 
 Each function takes plain sequences (one entry per commanded point) and writes one PNG;
 :func:`demo_plots` writes all three and returns their paths.

@@ -1,9 +1,10 @@
 """A small typed Modbus TCP client for talking to the soft PLC or a real OpenPLC, with
 REAL/DINT/LREAL helpers in OpenPLC's word order.
 
-This is the only module of the package that imports pymodbus (DESIGN.md §2): its API moves
-between minor releases, so every use of it is kept here. Written against pymodbus 3.16.1
-(``device_id`` is the unit id keyword since 3.10).
+This is the only module of the package that imports pymodbus: its API moves between minor
+releases, so every use of it is kept here. It works with the pymodbus versions pyproject.toml
+allows, tested at both ends: ``device_id`` is the unit id keyword since 3.10, and 3.10.0 sends
+and reads lists of more than 8 coils in the wrong bit order, so 3.11 is the oldest.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""OpenPLC v3's Modbus address map and word order (DESIGN.md §5.3), shared by the server and
-the client so both sides agree by construction.
+"""OpenPLC v3's Modbus address map and word order (docs/matiec-facts.md), shared by the
+server and the client so both sides agree by construction.
 
 Holding registers: 0..1023 %QW, 1024..2047 %MW, 2048..4095 %MD (two registers each),
 4096..8191 %ML (four each). 32/64-bit values travel as their raw bit pattern, most significant

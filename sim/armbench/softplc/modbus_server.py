@@ -1,4 +1,5 @@
-"""Modbus TCP server over a :class:`ProcessImage` with OpenPLC v3's address map (DESIGN.md §5.3).
+"""Modbus TCP server over a :class:`ProcessImage` with OpenPLC v3's address map
+(docs/matiec-facts.md).
 
 Hand-written MBAP/PDU handling instead of pymodbus: it is several times faster per request,
 lets every request run under the scan lock (so function 16 lands atomically between scans),
