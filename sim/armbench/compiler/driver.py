@@ -10,7 +10,7 @@ from . import ast as A
 from .build import build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .emit_c import CUnit, emit
-from .limits import check_nesting
+from .nesting import check_nesting
 from .lower import lower
 from .parse import parse_text
 from .resolve import check
