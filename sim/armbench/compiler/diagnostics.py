@@ -45,6 +45,9 @@ CODES: dict[str, tuple[str, str]] = {
               f"{NESTING_LIMIT} levels deep (a limit of the bench)"),
     "E0212": ("type used before its declaration", "declare a type before the TYPEs that name "
               "it (STRUCT fields, ARRAY elements, aliases): MatIEC rejects later types there"),
+    "E0213": ("your declaration replaces one the armbench library needs",
+              "rename your TYPE or POU, or check with --no-library and pass the library files "
+              "you need (docs/diagnostics.md, The armbench library)"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "

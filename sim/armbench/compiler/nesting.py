@@ -114,6 +114,7 @@ def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT
                 start = f.stack + _prefix(node, field, k)
             children.append(_Frame(child, start, room, f.levels + _levels(node, child), f))
         work.extend(reversed(children))
+    pf.guarded = True
 
 
 def _matiec_message(f: _Frame, peak: int) -> str:

@@ -35,6 +35,8 @@ class ParsedFile:
     enum_hash_offsets: frozenset[int]
     line_starts: list[int]
     ascii_lines: dict[int, bool] = field(default_factory=dict)  # row -> all bytes ASCII
+    # set by the nesting guard when the file is shallow enough for the recursive passes
+    guarded: bool = False
 
     def pos(self, node: ts.Node) -> SourcePos:
         return SourcePos(self.path, node.start_point.row + 1, self._col(node.start_point))
