@@ -1,6 +1,7 @@
 """armbench command line: check, build, run, serve, web, export, demo, demo-imu.
 
-Programs are compiled with the armbench ST library (armbench.locate) unless --no-library.
+Programs are compiled with what they use of the armbench ST library (armbench.locate,
+armbench.compiler.uses) unless --no-library.
 Exit codes: 0 ok, 1 diagnostics or fault, 2 usage (one line on stderr).
 """
 
@@ -20,21 +21,23 @@ from typing import TYPE_CHECKING, NoReturn
 from . import argtypes
 from .compiler import CompileFailed
 from .compiler.build import BuildError, build
-from .compiler.diagnostics import Diagnostic
-from .compiler.driver import analyse, emit_files, expand
+from .compiler.diagnostics import Diagnostic, Diagnostics
+from .compiler.driver import Analysis, analyse_program, expand
+from .compiler.emit_c import emit
+from .compiler.symbols import CheckedProgram
+from .compiler.uses import Library, declarations
 from .faults import PlcFault
 from .locate import (
     LibrarySelection,
     LocateError,
     NotACheckout,
-    components_used,
-    declared_names,
     default_project,
     find_checkout,
     with_library,
 )
 
 if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
+    from .compiler.ffi import Module
     from .softplc.loader import LoadedProgram
     from .softplc.modbus_server import ModbusServer
     from .softplc.scan import SoftPlc
@@ -64,31 +67,60 @@ def _given(paths: Sequence[str]) -> list[Path]:
     return files
 
 
+def _library_files() -> list[Path]:
+    """Where a program's names are looked up: the armbench ST library and the controller's
+    blocks (plc_project/controller/*.st), taken by use."""
+    project = default_project()
+    return [*project.library(), *project.components()]
+
+
 def _select(args: argparse.Namespace) -> LibrarySelection:
-    """The given files plus the armbench ST library (the files they do not replace), unless
-    --no-library. Notes about left-out library files go to stderr."""
+    """The given files, and the library files they do not replace (none with --no-library)."""
     given = _given(args.files)
     if args.no_library:
         return LibrarySelection(given)
-    project = default_project()
-    library = project.library()
-    selection = with_library(given, [*library, *components_used(given, project.components())])
-    for note in selection.notes:
+    return with_library(given, _library_files())
+
+
+def _analyse(args: argparse.Namespace) -> tuple[LibrarySelection, Analysis]:
+    """The given files checked with what they use of the library; a note (stderr) names the
+    program's declarations that library declarations it uses get instead of their own."""
+    selection = _select(args)
+    analysis = analyse_program(selection.given, selection.library)
+    note = analysis.library.note()
+    if note is not None and analysis.program is not None:  # else E0213 says it
         print(f"armbench: note: {note}", file=sys.stderr)
-    return selection
+    return selection, analysis
 
 
-def _files(args: argparse.Namespace) -> list[Path]:
-    return _select(args).files
+def _checked(args: argparse.Namespace) -> CheckedProgram:
+    _, analysis = _analyse(args)
+    if analysis.program is None:
+        raise CompileFailed(analysis.diagnostics.sorted())
+    return analysis.program
+
+
+def _module(args: argparse.Namespace) -> Module:
+    return _module_of(_checked(args))
+
+
+def _module_of(prog: CheckedProgram) -> Module:
+    from .compiler.ffi import Module
+
+    unit = emit(prog)
+    return Module(prog, unit, build(unit).path)
+
+
+_NOT_STANDARD = re.compile(r"^(\w+) is not an IEC standard function")
 
 
 def _library_hint(diags: Sequence[Diagnostic]) -> str | None:
     """With --no-library: which library files declare the names the program misses."""
     unknown = {m.upper() for d in diags if d.code in ("E0200", "E0400")
-               for m in re.findall(r"'(\w+)'", d.message)}
-    project = default_project()
-    files = [lib.name for lib in [*project.library(), *project.components()]
-             if declared_names(lib) & unknown]
+               for m in [*re.findall(r"'(\w+)'", d.message), *_NOT_STANDARD.findall(d.message)]}
+    lib = Library(_library_files(), Diagnostics())
+    declaring = {lib.file_of(n) for n in unknown}
+    files = [Path(f).name for f in lib.order if f in declaring]  # in library order
     if not files:
         return None
     return (f"armbench: note: unknown names are declared in the armbench library "
@@ -97,17 +129,19 @@ def _library_hint(diags: Sequence[Diagnostic]) -> str | None:
 
 def cmd_check(args: argparse.Namespace) -> int:
     if args.files:
-        selection = _select(args)
-        files, library = selection.files, len(selection.added)
+        selection, analysis = _analyse(args)
+        files, library = selection.given, len(analysis.library.files)
     else:  # the library and the controller the tools use
         files, library = default_project().sources(), -1
-    prog, diags = analyse(files)
+        analysis = analyse_program(files)
+    prog, diags = analysis.program, analysis.diagnostics
     items = diags.sorted()
     for d in items:
         print(d.render())
     errors = sum(d.severity == "error" for d in items)
     notes = len(items) - errors
-    what = f"{len(files)} file{'s' if len(files) != 1 else ''}"
+    n_files = len(files) + max(library, 0)
+    what = f"{n_files} file{'s' if n_files != 1 else ''}"
     if library > 0:
         what += f" ({library} from the armbench library)"
     elif library < 0:
@@ -127,7 +161,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def cmd_build(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    _, unit = emit_files(_files(args))
+    unit = emit(_checked(args))
     lib = build(unit)
     dt = time.perf_counter() - t0
     print(f"{lib.path} ({'cached' if lib.cached else 'built'} in {dt:.3f} s; C: {lib.c_path})")
@@ -135,10 +169,10 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .softplc.loader import load_program
+    from .softplc.loader import LoadedProgram
     from .softplc.scan import PlcState, SoftPlc
 
-    prog = load_program(_files(args))
+    prog = LoadedProgram(_module(args))
     plc = SoftPlc(prog)
     plc.run()
     base = min(t.interval_ns for t in prog.tasks)
@@ -172,13 +206,14 @@ def _finite(o: object) -> object:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    from .softplc.loader import load_program
+    from .softplc.loader import LoadedProgram, load_program
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
     from .softplc.scan import SoftPlc
 
     # Without files: the armbench library and the controller.
-    files = _files(args) if args.files else None
-    prog = load_program(files or default_project().sources())
+    checked = _checked(args) if args.files else None
+    prog = LoadedProgram(_module_of(checked)) if checked is not None else \
+        load_program(default_project().sources())
     plc = SoftPlc(prog)
     server = ModbusServer(
         prog.image, plc.lock, host=args.host, port=args.port,
@@ -191,13 +226,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
     server_log = logging.getLogger(ModbusServer.__module__)
     server_log.addHandler(to_stderr)
     try:
-        return _serve(args, prog, plc, server, files)
+        return _serve(args, prog, plc, server, checked)
     finally:
         server_log.removeHandler(to_stderr)
 
 
 def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
-           server: ModbusServer, files: list[Path] | None) -> int:
+           server: ModbusServer, checked: CheckedProgram | None) -> int:
     try:
         server.start()
     except OSError as exc:
@@ -211,7 +246,7 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
           flush=True)
     web = None
     if args.web:
-        web = _start_web(args, plc, server, _web_program(args, files))
+        web = _start_web(args, plc, server, _web_program(args, checked))
         if web is None:
             plc.stop()
             server.stop()
@@ -235,14 +270,14 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
     return EXIT_FAIL if plc.fault is not None else EXIT_OK
 
 
-def _web_program(args: argparse.Namespace, files: list[Path] | None) -> ProgramVariables:
-    """The located variables the live view shows: of ``files`` (the program and the library
-    files it was compiled with), or the packaged controller's map."""
+def _web_program(args: argparse.Namespace, checked: CheckedProgram | None) -> ProgramVariables:
+    """The located variables the live view shows: of the program checked from the given files
+    (with what it uses of the library), or the packaged controller's map."""
     from .web.variables import controller_variables, program_variables
 
-    if not files:
+    if checked is None:
         return controller_variables()
-    return program_variables(files, ", ".join(Path(f).name for f in _given(args.files)))
+    return program_variables(checked, ", ".join(Path(f).name for f in _given(args.files)))
 
 
 def _start_web(args: argparse.Namespace, plc: SoftPlc | None, server: ModbusServer | None,
@@ -282,7 +317,7 @@ def _start_web(args: argparse.Namespace, plc: SoftPlc | None, server: ModbusServ
 
 def cmd_web(args: argparse.Namespace) -> int:
     """The live view of a PLC that runs elsewhere (a soft PLC, OpenPLC), over Modbus."""
-    program = _web_program(args, _files(args) if args.files else None)
+    program = _web_program(args, _checked(args) if args.files else None)
     web = _start_web(args, None, None, program, args.plc)
     if web is None:
         return EXIT_FAIL
@@ -350,7 +385,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                              "`armbench export --regenerate` in a checkout)")
         if args.repo is not None:
             raise UsageError("armbench export: error: --repo goes with --regenerate")
-        exp = generate(_files(args) if args.files else None)
+        exp = generate(_export_files(args) if args.files else None)
         out = Path(args.out)
     if args.check:
         stale = exp.stale(out)
@@ -363,16 +398,51 @@ def cmd_export(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _export_files(args: argparse.Namespace) -> list[Path]:
+    """The given files and the library files the export copies. The export copies whole
+    files: those holding what the program uses, and those their other declarations need in
+    turn; one of them declaring a name the program declares too would be declared twice."""
+    selection, analysis = _analyse(args)
+    if analysis.program is None:
+        raise CompileFailed(analysis.diagnostics.sorted())
+    if not analysis.library.kept:
+        return selection.given
+    lib = Library(selection.library, Diagnostics())
+    library_files = set(lib.parsed)
+    mine = {key: d for u in analysis.program.units if u.pos.file not in library_files
+            for d in declarations(u) for key in d.declares}
+    files = list(analysis.library.files)
+    for file in files:  # grows while it is walked: the files the copied ones need
+        unit = lib.load(file)
+        for d in declarations(unit) if unit is not None else []:
+            for key in sorted(d.uses - d.declares - mine.keys()):
+                need = lib.file_of(key)
+                if need is not None and need not in files:
+                    files.append(need)
+    clashes = sorted((Path(lib.index[key][0]).name, lib.index[key][1]) for key in mine
+                     if key in lib.index and lib.index[key][0] in files)
+    if clashes:
+        where, name = clashes[0]
+        raise ValueError(
+            f"the export copies library files whole, and {where}, which the library "
+            f"declarations your program uses need, also declares {name} as your files do: "
+            "rename yours, or export with --no-library and pass the library files you need")
+    files.sort(key=lambda f: lib.order[f])
+    return [*selection.given, *map(Path, files)]
+
+
 def _library_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-library", action="store_true",
-                   help="do not add the armbench ST library (default: its files are added, "
-                   "except those your files replace)")
+                   help="do not look names up in the armbench ST library (default: the TYPEs "
+                   "and POUs of it that your files use are added, unless your files declare "
+                   "them)")
 
 
 def make_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="armbench", description="ST compiler, soft PLC and test bench for the "
-                "arm-kinematics library. Programs are compiled together with the armbench ST "
-                "library (st/*.st, shipped with the package) unless --no-library.")
+                "arm-kinematics library. Programs are compiled together with what they use of "
+                "the armbench ST library (st/*.st, shipped with the package) unless "
+                "--no-library.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     c = sub.add_parser("check", help="portability and type check (exit 1 on error)")
     c.add_argument("files", nargs="*", help=".st files or folders (default: the armbench "

@@ -11,12 +11,11 @@ Two different questions, kept apart on purpose:
   --regenerate``, batchgen, docgen, lutgen, registermap, the teaching plots): given with
   ``--repo``, or found from the current directory upwards. Never the installed package.
 
-:func:`with_library` adds the library to a user's program without duplicate definitions.
+:func:`with_library` pairs a user's program with the library files its names are looked up in.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,92 +126,18 @@ def find_checkout(repo: str | Path | None = None, start: Path | None = None) -> 
 
 @dataclass(frozen=True)
 class LibrarySelection:
-    """The files to compile: the user's, then the library files they do not replace."""
+    """A program's files and the library files its names are looked up in: the compiler takes
+    from those only the declarations the program uses (armbench.compiler.uses)."""
 
-    files: list[Path]
-    added: list[Path] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-
-
-def declared_names(path: Path) -> set[str]:
-    """Upper-case names of the POUs, types and enumeration values a file declares; empty when
-    the file does not parse (its own errors are reported by the checker)."""
-    from .compiler.diagnostics import Diagnostics
-    from .compiler.lower import lower
-    from .compiler.parse import parse_text
-    from .compiler.source import read_source
-    from .export.sources import declared_names as unit_names
-
-    diags = Diagnostics()
-    try:
-        text = read_source(path).text
-    except (OSError, UnicodeDecodeError):
-        return set()
-    pf = parse_text(str(path), text, diags)
-    if diags.has_errors:
-        return set()
-    unit = lower(pf, diags)
-    return set() if diags.has_errors else unit_names(unit)
+    given: list[Path]
+    library: list[Path] = field(default_factory=list)
 
 
 def with_library(given: Sequence[Path], library: Sequence[Path]) -> LibrarySelection:
-    """``given`` plus each library file that the user's files do not already provide.
-
-    A library file is left out when a given file is the same file, has the same name (the
-    user's own modified copy) or declares one of its names (a renamed copy): compiling both
-    would only give duplicate-declaration errors."""
+    """``given`` and the library files they do not replace: a library file is left out when a
+    given file is the same file or has the same name (the user's own modified copy)."""
     given_res = {p.resolve() for p in given}
     given_names = {p.name.lower() for p in given}
-    user_decls: set[str] | None = None
-    added: list[Path] = []
-    left_out: list[str] = []
-    clashes: set[str] = set()
-    for lib in library:
-        if lib.resolve() in given_res or lib.name.lower() in given_names:
-            continue
-        if user_decls is None:
-            user_decls = set().union(*(declared_names(p) for p in given))
-        clash = declared_names(lib) & user_decls
-        if clash:
-            left_out.append(lib.name)
-            clashes |= clash
-            continue
-        added.append(lib)
-    notes = []
-    if left_out:
-        notes.append(f"library file{'s' if len(left_out) > 1 else ''} {', '.join(left_out)} "
-                     f"left out: your files declare the same names (e.g. "
-                     f"{', '.join(sorted(clashes)[:2])})")
-    return LibrarySelection([*given, *added], added, notes)
-
-
-_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-
-
-def _words(path: Path) -> set[str]:
-    try:
-        return {w.upper() for w in _WORD.findall(path.read_text(encoding="utf-8",
-                                                                errors="replace"))}
-    except OSError:
-        return set()
-
-
-def components_used(given: Sequence[Path], components: Sequence[Path]) -> list[Path]:
-    """The controller's blocks (``plc_project/controller/*.st``) that ``given`` needs: those
-    declaring a name that the given files, or a block already needed, spell. A user's program
-    that composes a MailboxServer gets it and what it uses; one that does not gets none of
-    them (they are not part of the ST library)."""
-    given_res = {p.resolve() for p in given}
-    left = [c for c in components if c.resolve() not in given_res]
-    words: set[str] = set().union(*(_words(p) for p in given)) if given else set()
-    needed: list[Path] = []
-    changed = True
-    while changed:
-        changed = False
-        for comp in list(left):
-            if declared_names(comp) & words:
-                needed.append(comp)
-                left.remove(comp)
-                words |= _words(comp)
-                changed = True
-    return sorted(needed, key=lambda p: p.name)
+    return LibrarySelection(list(given), [lib for lib in library
+                                          if lib.resolve() not in given_res
+                                          and lib.name.lower() not in given_names])

@@ -8,9 +8,11 @@ fence; renderers use its first word):
                                   notebook), with the repository root as the working directory.
 * ```` ```python no-run ````     shown only (needs a second terminal, a file the student
                                   writes, a real PLC, ...).
-* ```` ```st pass ````           must pass ``armbench check`` on its own.
-* ```` ```st pass +lib ````      must pass together with st/ArmAngles.st and st/Kinematics.st.
-* ```` ```st fail E0106 ````     ``armbench check`` must report that code (``+lib`` as above).
+* ```` ```st pass ````           must pass ``armbench check``: with the declarations of the
+                                  armbench library (st/, plc_project/controller/) it uses,
+                                  as the command adds them.
+* ```` ```st pass no-lib ````    must pass ``armbench check --no-library``: on its own.
+* ```` ```st fail E0106 ````     ``armbench check`` must report that code (``no-lib`` as above).
                                   If the next block is a plain ```` ``` ```` block of
                                   ``file:line:col: error[...]`` lines, it must equal the real
                                   output (the file name aside).
@@ -37,7 +39,9 @@ DOCS = REPO / "docs"
 CODE_PAGES = sorted([DOCS / "kinematics.md", DOCS / "servo-pwm.md", DOCS / "orientation.md",
                      DOCS / "frames-dh.md", DOCS / "jacobians.md", *(DOCS / "labs").glob("*.md")])
 LINK_PAGES = sorted([*DOCS.glob("*.md"), *(DOCS / "labs").glob("*.md")])
-LIB = [REPO / "st" / "ArmAngles.st", REPO / "st" / "Kinematics.st"]
+# where `armbench check` looks names up (armbench.cli): the ST library, the controller's blocks
+LIB = [*sorted((REPO / "st").glob("*.st")),
+       *sorted((REPO / "plc_project" / "controller").glob("*.st"))]
 
 _FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```\s*$", re.S | re.M)
 _LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
@@ -121,8 +125,8 @@ def test_st_block(block: Block, after: Block | None, tmp_path: Path) -> None:
         return
     src = tmp_path / "block.st"
     src.write_text(block.text, encoding="utf-8")
-    files = [*LIB, src] if "+lib" in marks else [src]
-    diags = check_files(files)
+    assert "+lib" not in marks, f"{block.where}: the library is added by use; drop '+lib'"
+    diags = check_files([src], [] if "no-lib" in marks else LIB)
     rendered = [d.render() for d in diags]
     if marks[0] == "pass":
         assert not diags, f"{block.where} should pass armbench check:\n" + "\n".join(rendered)

@@ -70,6 +70,9 @@ LIMITS = f"""
   statement lists, VAR lists, enumerations, STRUCT fields, ARRAY initial values and POUs are
   left-recursive in MatIEC's grammar: 5,000 of each were measured to pass iec2c. The bench
   accepts any length (tested to 20,000 terms; its C splits long chains every 100 operators).
+  Checking time grows linearly with the input, for nesting, chains, statements and errors
+  alike (tested from 2,000 to 20,000 tokens): a chain of unary operators is one E0105 and
+  one E0108, not one per operator.
 - **Containment (E0210).** A STRUCT may not contain itself, directly, through other STRUCTs or
   through an ARRAY of itself; a FUNCTION_BLOCK may not hold an instance of itself, directly or
   through other FBs. Each cycle group is reported once, at the declaration that comes first
@@ -90,9 +93,35 @@ LIMITS = f"""
 """
 
 
+LIBRARY = """
+## The armbench library (E0213)
+
+`armbench check`, `build`, `run`, `serve` and `export` look the names your files use up in the
+armbench library (the ST library `st/*.st` and the controller's blocks
+`plc_project/controller/*.st`, shipped with the package) and add exactly the TYPEs and POUs
+your program uses, with the ones those use in turn. Names are compared case-insensitively, as
+ST does: `ATAN2(y, x)` is the library's `Atan2` (MatIEC has no ATAN2 standard function, so
+with `--no-library` it is E0400). `--no-library` adds nothing.
+
+- A TYPE or POU of your own with a library name is yours: the library's is not added, nor
+  anything only it would need. A program declaring `TYPE Vec3` or `FUNCTION DegToRad` and
+  using nothing of the library checks exactly as without it.
+- A library POU that you use and that refers to such a name gets your declaration (a modified
+  copy of a library type or block replaces the library's; a note names them). When the
+  library POU does not check with yours, one E0213 at your declaration stands for all the
+  errors inside the library: rename yours, or check with `--no-library` and pass the library
+  files you need.
+- A library file you pass yourself, or a file of yours with the same name, replaces the
+  library's file.
+- `export` copies library files whole: each file holding something your program uses, and
+  the files those need. When one of them declares a name your files declare too, `export`
+  stops with one line saying which.
+"""
+
+
 def render() -> str:
     rows = "".join(f"| {code} | {title} | {fix} |\n" for code, (title, fix) in CODES.items())
-    return HEADER + rows + LIMITS
+    return HEADER + rows + LIMITS + LIBRARY
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from .limits import NESTING_LIMIT
@@ -44,6 +45,9 @@ CODES: dict[str, tuple[str, str]] = {
               f"{NESTING_LIMIT} levels deep (a limit of the bench)"),
     "E0212": ("type used before its declaration", "declare a type before the TYPEs that name "
               "it (STRUCT fields, ARRAY elements, aliases): MatIEC rejects later types there"),
+    "E0213": ("your declaration replaces one the armbench library needs",
+              "rename your TYPE or POU, or check with --no-library and pass the library files "
+              "you need (docs/diagnostics.md, The armbench library)"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "
@@ -100,9 +104,13 @@ class Diagnostic:
 
 @dataclass
 class Diagnostics:
-    """Collects diagnostics of one compilation; suppresses exact repeats."""
+    """Collects diagnostics of one compilation; suppresses exact repeats.
+
+    Adding one costs the same however many there are (a set finds repeats): a file with
+    20,000 errors is reported in linear time."""
 
     items: list[Diagnostic] = field(default_factory=list)
+    _seen: set[Diagnostic] = field(default_factory=set, repr=False)
 
     def error(self, pos: SourcePos, code: str, message: str) -> None:
         self._add(Diagnostic(pos, code, message))
@@ -114,8 +122,18 @@ class Diagnostics:
     def _add(self, d: Diagnostic) -> None:
         if d.code not in CODES:
             raise KeyError(f"diagnostic code {d.code} is not in the CODES table")
-        if d not in self.items:
+        if d not in self._seen:
+            self._seen.add(d)
             self.items.append(d)
+
+    def extend(self, items: Iterable[Diagnostic]) -> None:
+        for d in items:
+            self._add(d)
+
+    def keep(self, wanted: Callable[[Diagnostic], bool]) -> None:
+        """Drop the diagnostics for which ``wanted`` is false."""
+        self.items = [d for d in self.items if wanted(d)]
+        self._seen = set(self.items)
 
     @property
     def has_errors(self) -> bool:

@@ -1,8 +1,13 @@
-"""The pipeline in one place: files -> diagnostics, or files -> loaded Module."""
+"""The pipeline in one place: files -> diagnostics, or files -> loaded Module.
+
+The files given are the program; ``library`` files are looked up by use (uses.py): only the
+library declarations the program needs are compiled with it.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -10,13 +15,13 @@ from . import ast as A
 from .build import build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .emit_c import CUnit, emit
-from .limits import check_nesting
+from .frontend import check_syntax, drop_syntax_cascades, read_parse
 from .lower import lower
-from .parse import parse_text
+from .parse import ParsedFile
 from .resolve import check
-from .rules import check_names, check_rules
-from .source import SourcePos, read_source
+from .rules import check_names
 from .symbols import CheckedProgram
+from .uses import Library, LibraryUse
 
 if TYPE_CHECKING:
     from .ffi import Module
@@ -33,57 +38,83 @@ def expand(paths: Sequence[str | Path]) -> list[Path]:
     return out
 
 
-def analyse(paths: Sequence[str | Path]) -> tuple[CheckedProgram | None, Diagnostics]:
+@dataclass
+class Analysis:
+    """One check of a program: the checked program (None on errors), the diagnostics and
+    what was taken from the library."""
+
+    program: CheckedProgram | None
+    diagnostics: Diagnostics
+    library: LibraryUse = field(default_factory=LibraryUse)
+
+
+def analyse_program(paths: Sequence[str | Path],
+                    library: Sequence[str | Path] = ()) -> Analysis:
+    """Check the program ``paths`` together with the declarations of ``library`` it uses."""
     diags = Diagnostics()
-    units: list[A.SourceUnit] = []
-    parsed = []
+    parsed: list[ParsedFile] = []
     for path in expand(paths):
-        try:
-            src = read_source(path)
-        except (OSError, UnicodeDecodeError) as exc:
-            diags.error(SourcePos(str(path), 1, 1), "E0001", f"cannot read {path}: {exc}")
-            continue
-        if src.assumed:
-            diags.note(SourcePos(str(path), 1, 1), "N0001", "not valid UTF-8: read as "
-                       "Windows-1252 (cp1252), as CODESYS V2 writes it")
-        text = src.text
-        pf = parse_text(str(path), text, diags)
-        parsed.append(pf)
-        check_rules(pf, diags)
-        check_nesting(pf, diags)
-    _drop_syntax_cascades(diags)
+        pf = read_parse(path, diags)
+        if pf is not None:
+            check_syntax(pf, diags)
+            parsed.append(pf)
+    drop_syntax_cascades(diags)
     if diags.has_errors:
-        return None, diags  # no semantic checks after a syntax error: no cascades
-    for pf in parsed:
-        units.append(lower(pf, diags))
+        return Analysis(None, diags)  # no semantic checks after a syntax error: no cascades
+    units: list[A.SourceUnit] = [lower(pf, diags) for pf in parsed]
     if diags.has_errors:
-        return None, diags
+        return Analysis(None, diags)
+    given = {Path(pf.path).resolve() for pf in parsed}
+    lib_files = [p for p in expand(library) if p.resolve() not in given]
+    use = LibraryUse()
+    if lib_files:
+        lib = Library(lib_files, diags)
+        use = lib.select(units)
+        if diags.has_errors:
+            return Analysis(None, diags, use)
+        for file in use.files:
+            unit = lib.units[file]
+            assert unit is not None  # a file with errors stopped above
+            units.append(use.prune(unit))
     prog = check(units, diags)
     check_names(prog, diags)
-    return (None if diags.has_errors else prog), diags
+    if use.replaced:
+        _explain_replacements(diags, use)
+    return Analysis(None if diags.has_errors else prog, diags, use)
 
 
-def _drop_syntax_cascades(diags: Diagnostics) -> None:
-    """A lexical rule (E0101-E0104) already explains the line: drop generic syntax errors there."""
-    explained = {(d.pos.file, d.pos.line) for d in diags.items
-                 if d.code in ("E0101", "E0102", "E0103", "E0104", "E0107")}
-    diags.items = [d for d in diags.items
-                   if not (d.code == "E0100" and (d.pos.file, d.pos.line) in explained)]
+def _explain_replacements(diags: Diagnostics, use: LibraryUse) -> None:
+    """Errors inside library declarations that got the program's declaration of a name: one
+    E0213 at the program's declaration says why, instead of every error it caused."""
+    files = set(use.files)
+    inside = [d for d in diags.items if d.severity == "error" and d.pos.file in files]
+    if not inside:
+        return
+    diags.keep(lambda d: d.severity != "error" or d.pos.file not in files)
+    diags.error(use.replaced[0].mine.pos, "E0213", use.conflict())
 
 
-def check_files(paths: Sequence[str | Path]) -> list[Diagnostic]:
-    return analyse(paths)[1].sorted()
+def analyse(paths: Sequence[str | Path], library: Sequence[str | Path] = ()
+            ) -> tuple[CheckedProgram | None, Diagnostics]:
+    a = analyse_program(paths, library)
+    return a.program, a.diagnostics
 
 
-def emit_files(paths: Sequence[str | Path]) -> tuple[CheckedProgram, CUnit]:
-    prog, diags = analyse(paths)
+def check_files(paths: Sequence[str | Path],
+                library: Sequence[str | Path] = ()) -> list[Diagnostic]:
+    return analyse(paths, library)[1].sorted()
+
+
+def emit_files(paths: Sequence[str | Path],
+               library: Sequence[str | Path] = ()) -> tuple[CheckedProgram, CUnit]:
+    prog, diags = analyse(paths, library)
     if prog is None:
         raise CompileFailed(diags.sorted())
     return prog, emit(prog)
 
 
-def compile_files(paths: Sequence[str | Path]) -> Module:
+def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
     from .ffi import Module
-    prog, unit = emit_files(paths)
+    prog, unit = emit_files(paths, library)
     lib = build(unit)
     return Module(prog, unit, lib.path)

@@ -475,4 +475,9 @@ class Lowerer:
 
 
 def lower(pf: ParsedFile, diags: Diagnostics) -> A.SourceUnit:
+    """The file's AST. Only for a file the nesting guard passed (frontend.check_syntax): the
+    lowering recurses as deep as the file nests."""
+    if not pf.guarded:
+        raise ValueError(f"{pf.path}: lowered before the nesting guard passed it "
+                         "(call frontend.check_syntax first)")
     return Lowerer(pf, diags).lower_file()

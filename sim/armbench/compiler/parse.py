@@ -35,6 +35,8 @@ class ParsedFile:
     enum_hash_offsets: frozenset[int]
     line_starts: list[int]
     ascii_lines: dict[int, bool] = field(default_factory=dict)  # row -> all bytes ASCII
+    # set by the nesting guard when the file is shallow enough for the recursive passes
+    guarded: bool = False
 
     def pos(self, node: ts.Node) -> SourcePos:
         return SourcePos(self.path, node.start_point.row + 1, self._col(node.start_point))
@@ -103,8 +105,7 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
         if node.is_missing and is_array_default_hole(node):
             continue
         if node.is_missing:
-            before = pf.data[:node.start_byte].decode("utf-8", "replace").rstrip().upper()
-            if node.type == ";" and before.endswith("END_STRUCT"):
+            if node.type == ";" and _after_end_struct(pf.data, node.start_byte):
                 diags.error(pf.pos(node), "E0107", "missing ';' after END_STRUCT: MatIEC "
                             "needs END_STRUCT; inside TYPE ... END_TYPE")
             else:
@@ -130,11 +131,22 @@ def is_array_default_hole(node: ts.Node) -> bool:
     return owner is not None and owner.type in ("type_definition", "structure_field")
 
 
+def _after_end_struct(data: bytes, offset: int) -> bool:
+    """Whether END_STRUCT is the last word before ``offset`` (looks back over whitespace only:
+    a file with thousands of syntax errors is still read once, not once per error)."""
+    i = offset
+    while i > 0 and data[i - 1] in b" \t\r\n":
+        i -= 1
+    return data[max(0, i - len(b"END_STRUCT")):i].upper() == b"END_STRUCT"
+
+
 def _describe_error(pf: ParsedFile, node: ts.Node) -> str:
-    snippet = pf.text_of(node).strip().splitlines()
+    # the first 40 characters of the first non-blank line, read from a bounded slice
+    head = pf.data[node.start_byte:min(node.end_byte, node.start_byte + 4096)]
+    snippet = head.decode("utf-8", "replace").strip().splitlines()
     first = snippet[0][:40] if snippet else ""
     prev = node.prev_sibling
-    if prev is not None and pf.text_of(prev).strip().upper().endswith("END_STRUCT"):
+    if prev is not None and _after_end_struct(pf.data, prev.end_byte):
         return "syntax error: ';' expected after END_STRUCT (write END_STRUCT;)"
     if first:
         return f"syntax error: unexpected '{first}'"

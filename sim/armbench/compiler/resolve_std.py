@@ -1,21 +1,31 @@
 """Typing of calls to the IEC standard functions (ABS, SQRT, MIN, LIMIT, SEL, MUX, SHL, ...).
 
-Needs: the Checker of resolve.py, whose expression typing and literal settling it uses. Each
+Needs: an expression checker (resolve.py's Checker), whose expression typing and literal
+settling it uses through the ExprChecker protocol below, not by importing it. Each
 function kind of stdlib.StdFunc has its rule here, as MatIEC applies it: generic arguments
 unify to one type, untyped literals take it, integers never become REAL.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from . import ast as A
+from .diagnostics import Diagnostics
 from .stdlib import StdFunc
 from .symbols import CallTarget
 from .types import BOOL, DINT, ERROR_T, INT_LIT, LREAL, REAL_LIT, ElemType, LiteralType, Type
 
-if TYPE_CHECKING:
-    from .resolve import Checker
+
+class ExprChecker(Protocol):
+    """What the standard-call rules need of the checker that owns them."""
+
+    d: Diagnostics
+    calls: dict[A.Call, CallTarget]
+
+    def expr(self, e: A.Expr, expected: Type | None) -> Type: ...
+
+    def coerce_to(self, e: A.Expr, t: Type, target: Type, what: str) -> None: ...
 
 
 def numbered(f: StdFunc, args: list[A.Expr]) -> CallTarget:
@@ -24,7 +34,7 @@ def numbered(f: StdFunc, args: list[A.Expr]) -> CallTarget:
 
 
 class StdCallTyper:
-    def __init__(self, checker: Checker) -> None:
+    def __init__(self, checker: ExprChecker) -> None:
         self.k = checker
 
     def check(self, c: A.Call, f: StdFunc, expected: Type | None) -> Type:

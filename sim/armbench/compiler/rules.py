@@ -10,6 +10,8 @@ import re
 from functools import cache
 from pathlib import Path
 
+from tree_sitter import Node
+
 from . import ast as A
 from .diagnostics import Diagnostics
 from .parse import ParsedFile
@@ -82,11 +84,19 @@ _TRAILING_DOT = re.compile(rb"(?<![\w#.])\d+\.(?![\d.])")
 
 
 def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
-    stack = [pf.tree.root_node]
+    # A tree cursor, not node.children and node.parent: tree-sitter finds a node's parent by
+    # walking down from the root, and lists of child nodes cost more the more nodes are alive,
+    # so both would make a 20,000-token file cost far more than ten 2,000-token ones.
+    cur = pf.tree.walk()
+    above: list[str] = []  # types of the nodes above the cursor
     comment_spans: list[tuple[int, int]] = []
-    while stack:
-        n = stack.pop()
-        if n.type == "comment":
+    while True:
+        n = cur.node
+        assert n is not None
+        t = n.type
+        descend = True
+        if t == "comment":
+            descend = False
             text = pf.text_of(n)
             comment_spans.append((n.start_byte, n.end_byte))
             if text.startswith("//"):
@@ -98,21 +108,31 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
             elif "(*" in text[2:]:
                 diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected by "
                             "MatIEC: use flat comments")
-            continue
-        if n.type == "pragma":
+        elif t == "pragma":
+            descend = False
             diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
                         "fails on them: remove it")
-            continue
-        if n.type == "unary_expression":
+        elif t == "unary_expression":
             operand = n.child_by_field_name("operand")
-            if operand is not None and operand.type == "unary_expression":
+            # once per chain, at its first operator: `- - - x` is one mistake, not two
+            chained = bool(above) and above[-1] == t and cur.field_name == "operand"
+            if operand is not None and operand.type == t and not chained:
                 diags.error(pf.pos(n), "E0105", "unsupported construct: a unary operator right "
-                            f"after another ('{pf.text_of(n)}'): MatIEC's grammar rejects "
+                            f"after another ('{_snippet(pf, n)}'): MatIEC's grammar rejects "
                             "'NOT NOT b' and '- -x': write NOT (NOT b), -(-x)")
-        if n.type == "real_literal" and "." not in pf.text_of(n):
+        elif t == "real_literal" and "." not in pf.text_of(n):
             diags.error(pf.pos(n), "E0104", f"real literal '{pf.text_of(n)}' needs a point "
                         "with digits on both sides (MatIEC rejects 1E3): write 1.0E3")
-        stack.extend(n.children)
+        if descend and cur.goto_first_child():
+            above.append(t)
+            continue
+        while not cur.goto_next_sibling():
+            if not cur.goto_parent():
+                break
+            above.pop()
+        else:
+            continue
+        break
     # `.5` and `1.` do not parse at all; say what is wrong instead of only "syntax error"
     code = bytearray(pf.data)
     for a, b in comment_spans:
@@ -125,6 +145,13 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
         for m in rx.finditer(bytes(code)):
             diags.error(pf.pos_at_byte(m.start()), "E0104", f"real literal with {what}: "
                         "write 0.5 or 1.0 (MatIEC rejects .5 and 1.)")
+
+
+def _snippet(pf: ParsedFile, node: Node, most: int = 40) -> str:
+    """The node's text for a message, cut after ``most`` characters."""
+    end = min(node.end_byte, node.start_byte + 4 * most)  # a UTF-8 character: 4 bytes at most
+    text = pf.data[node.start_byte:end].decode("utf-8", "replace")
+    return text if len(text) <= most and end == node.end_byte else text[:most] + "..."
 
 
 # ------------------------------------------------------------------ name rules

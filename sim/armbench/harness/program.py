@@ -162,8 +162,7 @@ class PlcProgram:
         ``ScanCount``; a name given here must exist. Raises CompileFailed with the
         diagnostics when the files do not check, ProgramError when the program cannot be
         tested over Modbus."""
-        from ..compiler.diagnostics import CompileFailed
-        from ..compiler.driver import analyse, expand
+        from ..compiler.driver import expand
 
         given = tuple(expand(files))
         if not given:
@@ -171,10 +170,7 @@ class PlcProgram:
         missing = [str(p) for p in given if not p.is_file()]
         if missing:
             raise ProgramError(f"no such file: {', '.join(missing)}")
-        compiled, notes = _with_library(given) if library else (given, ())
-        checked, diags = analyse(compiled)
-        if checked is None:
-            raise CompileFailed(diags.sorted())
+        checked, compiled, notes = _analysed(given, library)
         return cls.from_checked(checked, given, compiled, notes=notes, signature=signature,
                                 scan_counter=scan_counter)
 
@@ -245,15 +241,27 @@ class PlcProgram:
                               f"{len(names)}: {listed if len(listed) < 300 else listed[:300]}")
 
 
-def _with_library(given: Sequence[Path]) -> tuple[tuple[Path, ...], tuple[str, ...]]:
-    """The user's files and the armbench library files they do not replace: the selection of
-    ``armbench check/run/serve``, so a program that runs there runs here."""
-    from ..locate import components_used, default_project, with_library
+def _analysed(given: Sequence[Path], library: bool
+              ) -> tuple[CheckedProgram, tuple[Path, ...], tuple[str, ...]]:
+    """The user's files checked with what they use of the armbench library, as ``armbench
+    check/run/serve`` do (so a program that runs there runs here): the checked program, the
+    files it was compiled from, and the library's note. Raises CompileFailed."""
+    from ..compiler.diagnostics import CompileFailed
+    from ..compiler.driver import analyse_program
+    from ..locate import default_project, with_library
 
-    project = default_project()
-    selection = with_library(list(given), [*project.library(),
-                                           *components_used(given, project.components())])
-    return tuple(selection.files), tuple(selection.notes)
+    if not library:
+        analysis = analyse_program(given)
+        files: tuple[Path, ...] = tuple(given)
+    else:
+        project = default_project()
+        selection = with_library(list(given), [*project.library(), *project.components()])
+        analysis = analyse_program(selection.given, selection.library)
+        files = (*selection.given, *map(Path, analysis.library.files))
+    if analysis.program is None:
+        raise CompileFailed(analysis.diagnostics.sorted())
+    note = analysis.library.note()
+    return analysis.program, files, () if note is None else (note,)
 
 
 def _signature(checked: CheckedProgram, variables: Mapping[str, Variable],

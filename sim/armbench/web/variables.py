@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..compiler.symbols import CheckedProgram
 from ..registermap import Register, Unreachable, controller_map, program_map
 from ..softplc import modbus_map as mm
 from ..softplc.modbus_client import PlcClient
@@ -49,13 +50,14 @@ def _same(a: Register, b: Register) -> bool:
     return (a.location, a.st_type.upper()) == (b.location, b.st_type.upper())
 
 
-def program_variables(paths: Sequence[str | Path], name: str) -> ProgramVariables:
-    """The located variables of the program in ``paths`` (the files the PLC was built from,
-    library included; ``name`` says which for the page). A program that declares every
-    register of the arm controller's map at the same location and type is the controller (or
-    a version of it with more): the view then draws the arm and offers its commands. Raises
+def program_variables(source: CheckedProgram | Sequence[str | Path],
+                      name: str) -> ProgramVariables:
+    """The located variables of a checked program, or of the program in ``paths`` (the files
+    the PLC was built from, library included); ``name`` says which for the page. A program
+    that declares every register of the arm controller's map at the same location and type is
+    the controller (or a version of it with more): the view then draws the arm and offers its commands. Raises
     CompileFailed when the files do not check."""
-    pm = program_map(paths)
+    pm = program_map(source)
     mine = {r.name.upper(): r for r in pm.registers}
     controller = controller_map()
     is_controller = all(n in mine and _same(mine[n], r) for n, r in controller.items())
