@@ -31,6 +31,7 @@ from stepped_controller import (
     HELLO,
     JOG_START,
     JOG_STOP,
+    JOG_UPDATE,
     JOG_WRIST,
     JOINT_LIMIT,
     MOVE_JOINTS,
@@ -247,6 +248,50 @@ def test_second_stop_brakes_harder(bench: Bench) -> None:
     took = rest - second
     assert took <= bound, (f"at rest {took} scans after the second Stop (from {vel:.4g} deg/s "
                            f"at {acc:g} deg/s^2 it needs at most {bound})")
+    bench.assert_safe()
+
+
+@pytest.mark.parametrize(("decel", "expect"), [(0.0, OK), (50.0, BAD_PARAMETER)],
+                         ids=["limit", "refused_below_floor"])
+def test_stop_while_the_stage_trails_a_jog_brakes_in_minimum_time(
+        bench: Bench, decel: float, expect: int) -> None:
+    """WristRoll limited to 20 deg/s and 20 deg/s^2; a flange-fixed wrist jog at 19 deg/s
+    with its own 150 deg/s^2 runs its setpoint away from the output stage (which may only
+    speed up at 20), so at the Stop the stage runs at its 20 deg/s several degrees behind
+    the setpoint. The Stop plans the braking from the stage's own angle and speed; the stage
+    must follow that plan from its first scan: braking from v0 at a = 20 deg/s^2 it covers
+    v0^2 / (2a) (no overshoot and back) and is at rest within ceil(v0 / (a dt)) scans."""
+    roll, dt, acc = 4, 0.01, 20.0
+    assert bench.a.command(SET_MOTION_LIMITS, int1=roll, args=(20.0, acc)) == OK
+    assert bench.a.command(JOG_WRIST, int1=2, args=(0.0, 19.0, 19.0, 150.0)) == OK
+    for _ in range(8):  # JogUpdate within the dead-man's 50 scans
+        bench.ctl.step(19)
+        assert bench.a.command(JOG_UPDATE, args=(0.0, 19.0)) == OK
+    lag = float(bench.ctl.read("SETWRISTROLLDEG")) - float(bench.ctl.read("OUTWRISTROLLDEG"))
+    g = ((float(bench.ctl.read("WRISTROLLCALMAXPULSEUS"))
+          - float(bench.ctl.read("WRISTROLLCALMINPULSEUS")))
+         / (float(bench.ctl.read("WRISTROLLCALMAXANGLEDEG"))
+            - float(bench.ctl.read("WRISTROLLCALMINANGLEDEG"))))  # us per deg
+    v0 = bench.out.steps[roll] / (g * dt)  # deg/s, the stage's speed at the Stop
+    x0 = float(bench.ctl.read("OUTWRISTROLLDEG"))
+    assert lag > 1.0 and v0 == pytest.approx(20.0, rel=1e-3), \
+        f"no trailing stage to stop: setpoint - stage {lag:.4g} deg, stage at {v0:.6g} deg/s"
+    result = bench.b.command(STOP, args=(decel,))
+    assert result == expect, f"Stop({decel}) answered {result}"
+    stop_scan = bench.ctl.scan
+    last_moving, peak = stop_scan, x0
+    for _ in range(300):
+        if bench.out.steps[roll] != 0.0:
+            last_moving = bench.ctl.scan
+        peak = max(peak, float(bench.ctl.read("OUTWRISTROLLDEG")))
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt))
+    distance = v0 * v0 / (2.0 * acc)
+    assert peak - x0 <= distance + 1e-3 and took <= need, (
+        f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 (setpoint {lag:.4g} deg ahead): "
+        f"went {peak - x0:.6g} deg (plan {distance:.6g}) and moved {took} scans "
+        f"(plan {need}); {bench.stop.report()}")
     bench.assert_safe()
 
 

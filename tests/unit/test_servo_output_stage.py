@@ -58,9 +58,9 @@ class Channel:
         self.fb = self.mod.new_fb("ServoOutputChannel")
 
     def step(self, powered: bool, cmd: float, cal: dict[str, Any] = DEFAULT_CAL,
-             vel: float = 150.0, acc: float = 1000.0) -> Any:
+             vel: float = 150.0, acc: float = 1000.0, replanned: bool = False) -> Any:
         out = self.fb(Powered=powered, CommandDeg=cmd, Cal=cal, MaxVelDeg=vel,
-                      MaxAccDeg=acc, CycleTime=DT)
+                      MaxAccDeg=acc, CycleTime=DT, Replanned=replanned)
         p = float(out.PulseUs)
         self.pulses.append(p)
         assert math.isfinite(p), f"pulse {p}"
@@ -173,6 +173,20 @@ def test_invariants_under_hostile_sequences(stage_module: Any,
     for powered, cmd, scans in program:
         for _ in range(scans):
             ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1])
+
+
+@given(st.lists(st.tuples(st.booleans(), command, st.integers(1, 40), st.booleans()),
+                min_size=1, max_size=12), cal_choice, limits)
+def test_invariants_whatever_replanned_says(stage_module: Any,
+                                            program: list[tuple[bool, float, int, bool]],
+                                            cal: dict[str, Any],
+                                            lim: tuple[float, float]) -> None:
+    """Replanned only moves the feed-forward's reference: a caller that says it re-planned
+    when it did not (in the first scan of each run of scans) cannot break a limit."""
+    ch = Channel(stage_module)
+    for powered, cmd, scans, replanned in program:
+        for k in range(scans):
+            ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1], replanned=replanned and k == 0)
 
 
 def test_a_command_running_past_the_travel_end_is_braked_before_it(stage_module: Any) -> None:
