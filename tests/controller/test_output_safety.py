@@ -260,7 +260,8 @@ def test_stop_while_the_stage_trails_a_jog_brakes_in_minimum_time(
     speed up at 20), so at the Stop the stage runs at its 20 deg/s several degrees behind
     the setpoint. The Stop plans the braking from the stage's own angle and speed; the stage
     must follow that plan from its first scan: braking from v0 at a = 20 deg/s^2 it covers
-    v0^2 / (2a) (no overshoot and back) and is at rest within ceil(v0 / (a dt)) scans."""
+    v0^2 / (2a) (no overshoot and back) and is at rest within ceil(v0 / (a dt)) + 1 scans
+    (one for the float32 rounding of the plan's end)."""
     roll, dt, acc = 4, 0.01, 20.0
     assert bench.a.command(SET_MOTION_LIMITS, int1=roll, args=(20.0, acc)) == OK
     assert bench.a.command(JOG_WRIST, int1=2, args=(0.0, 19.0, 19.0, 150.0)) == OK
@@ -286,12 +287,49 @@ def test_stop_while_the_stage_trails_a_jog_brakes_in_minimum_time(
         peak = max(peak, float(bench.ctl.read("OUTWRISTROLLDEG")))
         bench.ctl.step()
     took = last_moving - stop_scan + 1
-    need = math.ceil(v0 / (acc * dt))
+    need = math.ceil(v0 / (acc * dt)) + 1
     distance = v0 * v0 / (2.0 * acc)
     assert peak - x0 <= distance + 1e-3 and took <= need, (
         f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 (setpoint {lag:.4g} deg ahead): "
         f"went {peak - x0:.6g} deg (plan {distance:.6g}) and moved {took} scans "
-        f"(plan {need}); {bench.stop.report()}")
+        f"(at most {need}); {bench.stop.report()}")
+    bench.assert_safe()
+
+
+@pytest.mark.parametrize("acc", [10.6, 50.0])
+def test_stop_at_a_low_acceleration_limit_brakes_in_minimum_time(bench: Bench,
+                                                                 acc: float) -> None:
+    """The base limited to 30 deg/s and `acc` deg/s^2 cruises at 30 deg/s; Stop(0) plans the
+    braking at exactly `acc`: a step change of acc*g*dt^2 = 72.36 (10.6) or 341.33 (50)
+    ulps of a pulse in [1024, 2048) us (g = 1000/120 us/deg, ulp 2^-13 us). Rounded to the
+    nearest pulse, a stage clamping its step change at exactly that limit emits 72 resp. 341
+    ulps per scan: it brakes softer than the plan, falls ahead of it ever more (by about
+    0.36 ulp * n^2 / 2 after n scans) and must come back. It must instead cover
+    v0^2 / (2 acc) and be at rest within ceil(v0 / (acc dt)) + 1 scans (one for the
+    float32 rounding of the plan's end)."""
+    base, dt = 0, 0.01
+    assert bench.a.command(SET_MOTION_LIMITS, int1=base, args=(30.0, acc)) == OK
+    bench.move(-55.0, 70.0, 65.0, 3000)
+    bench.move(55.0, 70.0, 65.0, int(30.0 / (acc * dt)) + 20)  # past the speed-up: cruising
+    g = 1000.0 / 120.0
+    v0 = abs(bench.out.steps[base]) / (g * dt)
+    x0 = float(bench.ctl.read("OUTBASEDEG"))
+    assert v0 == pytest.approx(30.0, rel=1e-3), f"the base is not cruising: {v0:.6g} deg/s"
+    assert bench.b.command(STOP, args=(0.0,)) == OK
+    stop_scan = bench.ctl.scan
+    last_moving, peak = stop_scan, x0
+    for _ in range(int(v0 / (acc * dt)) + 100):
+        if bench.out.steps[base] != 0.0:
+            last_moving = bench.ctl.scan
+        peak = max(peak, float(bench.ctl.read("OUTBASEDEG")))
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt)) + 1
+    distance = v0 * v0 / (2.0 * acc)
+    assert peak - x0 <= distance + 1e-3 and took <= need, (
+        f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 went {peak - x0:.6g} deg "
+        f"(plan {distance:.6g}) and moved {took} scans (at most {need}); "
+        f"{bench.stop.report()}")
     bench.assert_safe()
 
 

@@ -189,6 +189,39 @@ def test_invariants_whatever_replanned_says(stage_module: Any,
             ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1], replanned=replanned and k == 0)
 
 
+@pytest.mark.parametrize("decel", [200.0, 120.0])
+def test_a_braking_replanned_from_a_trailing_stage_is_followed_exactly(
+        stage_module: Any, decel: float) -> None:
+    """A command that speeds up at 1000 deg/s^2 (five times the stage's 200) to 45 deg/s
+    leaves the stage, at its 50 deg/s, degrees behind. A Stop's braking is then planned from
+    the stage's own AngleDeg and VelDeg (x0, v0) at `decel` <= the stage's limit:
+    x(t) = x0 + v0 t - decel t^2 / 2 until t = v0 / decel (MotionStopEval), with Replanned
+    in its first scan. The stage must follow that plan scan by scan: never past
+    x0 + v0^2 / (2 decel), at rest within ceil(v0 / (decel dt)) scans."""
+    vel, acc = 50.0, 200.0
+    ch = Channel(stage_module)
+    cmd = speed = 0.0
+    out = ch.step(True, cmd, vel=vel, acc=acc)
+    for _ in range(30):
+        speed = min(45.0, speed + 1000.0 * DT)
+        cmd += speed * DT
+        out = ch.step(True, cmd, vel=vel, acc=acc)
+    x0, v0 = float(out.AngleDeg), float(out.VelDeg)
+    assert v0 == pytest.approx(vel, rel=1e-4) and cmd - x0 > 2.0, (x0, v0, cmd)
+    stop_t = v0 / decel
+    need = math.ceil(stop_t / DT)
+    worst = 0.0
+    for k in range(1, need + 20):
+        t = min(k * DT, stop_t)
+        plan = x0 + v0 * t - decel * t * t / 2.0
+        out = ch.step(True, plan, vel=vel, acc=acc, replanned=(k == 1))
+        worst = max(worst, abs(float(out.AngleDeg) - plan))
+        if k > need:
+            assert not out.Moving, f"still moving {k} scans after the Stop (plan: {need})"
+    assert worst <= 1e-3, f"the stage left the braking plan by up to {worst:.6g} deg"
+    assert float(out.AngleDeg) == pytest.approx(x0 + v0 * v0 / (2.0 * decel), abs=1e-3)
+
+
 def test_a_command_running_past_the_travel_end_is_braked_before_it(stage_module: Any) -> None:
     """A generator that drives on past the travel at nearly full speed (a slow Stop, a jog
     whose limits are wrong): the stage must start braking early enough to stop at 2000 us
