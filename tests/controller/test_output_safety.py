@@ -8,7 +8,9 @@ A  the output stage: per channel |step| <= Vel*g*dt, |step change| <= Acc*g*dt^2
    calibration's range, joint angles inside the travel, no REAL output NaN/Inf; calibration
    and limits change only at rest and never move a servo;
 B  Stop always wins: never refused, the arm at rest within ceil(Vel/(min(Acc,100)*dt)) + 5
-   scans, a later Stop brakes at least as hard;
+   scans, a later Stop brakes at least as hard; the braking planned from the stage's speed
+   v0 is followed from its first scan (at rest within ceil(v0/(a*dt)) + 1 scans, no
+   overshoot), also by a stage that trails its setpoint or has a low acceleration limit;
 C  the check word covers the whole block (CRC-32 of its 44 bytes; NaN canonical, -0.0 = 0),
    whatever order its 16-bit registers land in;
 D  absurd motion parameters are refused (8 BadParameter) and publish no NaN.
@@ -330,6 +332,34 @@ def test_stop_at_a_low_acceleration_limit_brakes_in_minimum_time(bench: Bench,
         f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 went {peak - x0:.6g} deg "
         f"(plan {distance:.6g}) and moved {took} scans (at most {need}); "
         f"{bench.stop.report()}")
+    bench.assert_safe()
+
+
+def test_a_stop_in_every_scan_brakes_as_hard_as_one(bench: Bench) -> None:
+    """The base cruising at 30 deg/s (limits 30 deg/s, 100 deg/s^2), then Stop(0) in every
+    scan from two clients in turn until it rests (an e-stop that repeats). Each Stop
+    re-plans from the stage; the arm must still brake at 100 deg/s^2: at rest within
+    ceil(v0 / (a dt)) + 1 scans of the first Stop, not slower with every re-plan."""
+    base, dt, acc = 0, 0.01, 100.0
+    assert bench.a.command(SET_MOTION_LIMITS, int1=base, args=(30.0, acc)) == OK
+    bench.move(-55.0, 70.0, 65.0, 300)
+    bench.move(55.0, 70.0, 65.0, 50)
+    v0 = abs(bench.out.steps[base]) / (1000.0 / 120.0 * dt)
+    assert v0 == pytest.approx(30.0, rel=1e-3), f"the base is not cruising: {v0:.6g} deg/s"
+    assert bench.b.command(STOP) == OK
+    stop_scan = bench.ctl.scan
+    last_moving, stops = stop_scan, 1
+    for k in range(200):
+        if bench.out.steps[base] != 0.0:
+            last_moving = bench.ctl.scan
+            (bench.a if k % 2 == 0 else bench.b).send(STOP)
+            stops += 1
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt)) + 1
+    assert took <= need, (f"{stops} Stops, one per scan: the base moved {took} scans braking "
+                          f"from {v0:.6g} deg/s at {acc:g} deg/s^2 (at most {need}); "
+                          f"{bench.stop.report()}")
     bench.assert_safe()
 
 
