@@ -8,7 +8,9 @@ A  the output stage: per channel |step| <= Vel*g*dt, |step change| <= Acc*g*dt^2
    calibration's range, joint angles inside the travel, no REAL output NaN/Inf; calibration
    and limits change only at rest and never move a servo;
 B  Stop always wins: never refused, the arm at rest within ceil(Vel/(min(Acc,100)*dt)) + 5
-   scans, a later Stop brakes at least as hard;
+   scans, a later Stop brakes at least as hard; the braking planned from the stage's speed
+   v0 is followed from its first scan (at rest within ceil(v0/(a*dt)) + 1 scans, no
+   overshoot), also by a stage that trails its setpoint or has a low acceleration limit;
 C  the check word covers the whole block (CRC-32 of its 44 bytes; NaN canonical, -0.0 = 0),
    whatever order its 16-bit registers land in;
 D  absurd motion parameters are refused (8 BadParameter) and publish no NaN.
@@ -31,6 +33,7 @@ from stepped_controller import (
     HELLO,
     JOG_START,
     JOG_STOP,
+    JOG_UPDATE,
     JOG_WRIST,
     JOINT_LIMIT,
     MOVE_JOINTS,
@@ -247,6 +250,116 @@ def test_second_stop_brakes_harder(bench: Bench) -> None:
     took = rest - second
     assert took <= bound, (f"at rest {took} scans after the second Stop (from {vel:.4g} deg/s "
                            f"at {acc:g} deg/s^2 it needs at most {bound})")
+    bench.assert_safe()
+
+
+@pytest.mark.parametrize(("decel", "expect"), [(0.0, OK), (50.0, BAD_PARAMETER)],
+                         ids=["limit", "refused_below_floor"])
+def test_stop_while_the_stage_trails_a_jog_brakes_in_minimum_time(
+        bench: Bench, decel: float, expect: int) -> None:
+    """WristRoll limited to 20 deg/s and 20 deg/s^2; a flange-fixed wrist jog at 19 deg/s
+    with its own 150 deg/s^2 runs its setpoint away from the output stage (which may only
+    speed up at 20), so at the Stop the stage runs at its 20 deg/s several degrees behind
+    the setpoint. The Stop plans the braking from the stage's own angle and speed; the stage
+    must follow that plan from its first scan: braking from v0 at a = 20 deg/s^2 it covers
+    v0^2 / (2a) (no overshoot and back) and is at rest within ceil(v0 / (a dt)) + 1 scans
+    (one for the float32 rounding of the plan's end)."""
+    roll, dt, acc = 4, 0.01, 20.0
+    assert bench.a.command(SET_MOTION_LIMITS, int1=roll, args=(20.0, acc)) == OK
+    assert bench.a.command(JOG_WRIST, int1=2, args=(0.0, 19.0, 19.0, 150.0)) == OK
+    for _ in range(8):  # JogUpdate within the dead-man's 50 scans
+        bench.ctl.step(19)
+        assert bench.a.command(JOG_UPDATE, args=(0.0, 19.0)) == OK
+    lag = float(bench.ctl.read("SETWRISTROLLDEG")) - float(bench.ctl.read("OUTWRISTROLLDEG"))
+    g = ((float(bench.ctl.read("WRISTROLLCALMAXPULSEUS"))
+          - float(bench.ctl.read("WRISTROLLCALMINPULSEUS")))
+         / (float(bench.ctl.read("WRISTROLLCALMAXANGLEDEG"))
+            - float(bench.ctl.read("WRISTROLLCALMINANGLEDEG"))))  # us per deg
+    v0 = bench.out.steps[roll] / (g * dt)  # deg/s, the stage's speed at the Stop
+    x0 = float(bench.ctl.read("OUTWRISTROLLDEG"))
+    assert lag > 1.0 and v0 == pytest.approx(20.0, rel=1e-3), \
+        f"no trailing stage to stop: setpoint - stage {lag:.4g} deg, stage at {v0:.6g} deg/s"
+    result = bench.b.command(STOP, args=(decel,))
+    assert result == expect, f"Stop({decel}) answered {result}"
+    stop_scan = bench.ctl.scan
+    last_moving, peak = stop_scan, x0
+    for _ in range(300):
+        if bench.out.steps[roll] != 0.0:
+            last_moving = bench.ctl.scan
+        peak = max(peak, float(bench.ctl.read("OUTWRISTROLLDEG")))
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt)) + 1
+    distance = v0 * v0 / (2.0 * acc)
+    assert peak - x0 <= distance + 1e-3 and took <= need, (
+        f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 (setpoint {lag:.4g} deg ahead): "
+        f"went {peak - x0:.6g} deg (plan {distance:.6g}) and moved {took} scans "
+        f"(at most {need}); {bench.stop.report()}")
+    bench.assert_safe()
+
+
+@pytest.mark.parametrize("acc", [10.6, 50.0])
+def test_stop_at_a_low_acceleration_limit_brakes_in_minimum_time(bench: Bench,
+                                                                 acc: float) -> None:
+    """The base limited to 30 deg/s and `acc` deg/s^2 cruises at 30 deg/s; Stop(0) plans the
+    braking at exactly `acc`: a step change of acc*g*dt^2 = 72.36 (10.6) or 341.33 (50)
+    ulps of a pulse in [1024, 2048) us (g = 1000/120 us/deg, ulp 2^-13 us). Rounded to the
+    nearest pulse, a stage clamping its step change at exactly that limit emits 72 resp. 341
+    ulps per scan: it brakes softer than the plan, falls ahead of it ever more (by about
+    0.36 ulp * n^2 / 2 after n scans) and must come back. It must instead cover
+    v0^2 / (2 acc) and be at rest within ceil(v0 / (acc dt)) + 1 scans (one for the
+    float32 rounding of the plan's end)."""
+    base, dt = 0, 0.01
+    assert bench.a.command(SET_MOTION_LIMITS, int1=base, args=(30.0, acc)) == OK
+    bench.move(-55.0, 70.0, 65.0, 3000)
+    bench.move(55.0, 70.0, 65.0, int(30.0 / (acc * dt)) + 20)  # past the speed-up: cruising
+    g = 1000.0 / 120.0
+    v0 = abs(bench.out.steps[base]) / (g * dt)
+    x0 = float(bench.ctl.read("OUTBASEDEG"))
+    assert v0 == pytest.approx(30.0, rel=1e-3), f"the base is not cruising: {v0:.6g} deg/s"
+    assert bench.b.command(STOP, args=(0.0,)) == OK
+    stop_scan = bench.ctl.scan
+    last_moving, peak = stop_scan, x0
+    for _ in range(int(v0 / (acc * dt)) + 100):
+        if bench.out.steps[base] != 0.0:
+            last_moving = bench.ctl.scan
+        peak = max(peak, float(bench.ctl.read("OUTBASEDEG")))
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt)) + 1
+    distance = v0 * v0 / (2.0 * acc)
+    assert peak - x0 <= distance + 1e-3 and took <= need, (
+        f"braking from {v0:.6g} deg/s at {acc:g} deg/s^2 went {peak - x0:.6g} deg "
+        f"(plan {distance:.6g}) and moved {took} scans (at most {need}); "
+        f"{bench.stop.report()}")
+    bench.assert_safe()
+
+
+def test_a_stop_in_every_scan_brakes_as_hard_as_one(bench: Bench) -> None:
+    """The base cruising at 30 deg/s (limits 30 deg/s, 100 deg/s^2), then Stop(0) in every
+    scan from two clients in turn until it rests (an e-stop that repeats). Each Stop
+    re-plans from the stage; the arm must still brake at 100 deg/s^2: at rest within
+    ceil(v0 / (a dt)) + 1 scans of the first Stop, not slower with every re-plan."""
+    base, dt, acc = 0, 0.01, 100.0
+    assert bench.a.command(SET_MOTION_LIMITS, int1=base, args=(30.0, acc)) == OK
+    bench.move(-55.0, 70.0, 65.0, 300)
+    bench.move(55.0, 70.0, 65.0, 50)
+    v0 = abs(bench.out.steps[base]) / (1000.0 / 120.0 * dt)
+    assert v0 == pytest.approx(30.0, rel=1e-3), f"the base is not cruising: {v0:.6g} deg/s"
+    assert bench.b.command(STOP) == OK
+    stop_scan = bench.ctl.scan
+    last_moving, stops = stop_scan, 1
+    for k in range(200):
+        if bench.out.steps[base] != 0.0:
+            last_moving = bench.ctl.scan
+            (bench.a if k % 2 == 0 else bench.b).send(STOP)
+            stops += 1
+        bench.ctl.step()
+    took = last_moving - stop_scan + 1
+    need = math.ceil(v0 / (acc * dt)) + 1
+    assert took <= need, (f"{stops} Stops, one per scan: the base moved {took} scans braking "
+                          f"from {v0:.6g} deg/s at {acc:g} deg/s^2 (at most {need}); "
+                          f"{bench.stop.report()}")
     bench.assert_safe()
 
 

@@ -58,9 +58,9 @@ class Channel:
         self.fb = self.mod.new_fb("ServoOutputChannel")
 
     def step(self, powered: bool, cmd: float, cal: dict[str, Any] = DEFAULT_CAL,
-             vel: float = 150.0, acc: float = 1000.0) -> Any:
+             vel: float = 150.0, acc: float = 1000.0, replanned: bool = False) -> Any:
         out = self.fb(Powered=powered, CommandDeg=cmd, Cal=cal, MaxVelDeg=vel,
-                      MaxAccDeg=acc, CycleTime=DT)
+                      MaxAccDeg=acc, CycleTime=DT, Replanned=replanned)
         p = float(out.PulseUs)
         self.pulses.append(p)
         assert math.isfinite(p), f"pulse {p}"
@@ -173,6 +173,53 @@ def test_invariants_under_hostile_sequences(stage_module: Any,
     for powered, cmd, scans in program:
         for _ in range(scans):
             ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1])
+
+
+@given(st.lists(st.tuples(st.booleans(), command, st.integers(1, 40), st.booleans()),
+                min_size=1, max_size=12), cal_choice, limits)
+def test_invariants_whatever_replanned_says(stage_module: Any,
+                                            program: list[tuple[bool, float, int, bool]],
+                                            cal: dict[str, Any],
+                                            lim: tuple[float, float]) -> None:
+    """Replanned only moves the feed-forward's reference: a caller that says it re-planned
+    when it did not (in the first scan of each run of scans) cannot break a limit."""
+    ch = Channel(stage_module)
+    for powered, cmd, scans, replanned in program:
+        for k in range(scans):
+            ch.step(powered, cmd, cal=cal, vel=lim[0], acc=lim[1], replanned=replanned and k == 0)
+
+
+@pytest.mark.parametrize("decel", [200.0, 120.0])
+def test_a_braking_replanned_from_a_trailing_stage_is_followed_exactly(
+        stage_module: Any, decel: float) -> None:
+    """A command that speeds up at 1000 deg/s^2 (five times the stage's 200) to 45 deg/s
+    leaves the stage, at its 50 deg/s, degrees behind. A Stop's braking is then planned from
+    the stage's own AngleDeg and VelDeg (x0, v0) at `decel` <= the stage's limit:
+    x(t) = x0 + v0 t - decel t^2 / 2 until t = v0 / decel (MotionStopEval), with Replanned
+    in its first scan. The stage must follow that plan scan by scan: never past
+    x0 + v0^2 / (2 decel), at rest within ceil(v0 / (decel dt)) scans."""
+    vel, acc = 50.0, 200.0
+    ch = Channel(stage_module)
+    cmd = speed = 0.0
+    out = ch.step(True, cmd, vel=vel, acc=acc)
+    for _ in range(30):
+        speed = min(45.0, speed + 1000.0 * DT)
+        cmd += speed * DT
+        out = ch.step(True, cmd, vel=vel, acc=acc)
+    x0, v0 = float(out.AngleDeg), float(out.VelDeg)
+    assert v0 == pytest.approx(vel, rel=1e-4) and cmd - x0 > 2.0, (x0, v0, cmd)
+    stop_t = v0 / decel
+    need = math.ceil(stop_t / DT)
+    worst = 0.0
+    for k in range(1, need + 20):
+        t = min(k * DT, stop_t)
+        plan = x0 + v0 * t - decel * t * t / 2.0
+        out = ch.step(True, plan, vel=vel, acc=acc, replanned=(k == 1))
+        worst = max(worst, abs(float(out.AngleDeg) - plan))
+        if k > need:
+            assert not out.Moving, f"still moving {k} scans after the Stop (plan: {need})"
+    assert worst <= 1e-3, f"the stage left the braking plan by up to {worst:.6g} deg"
+    assert float(out.AngleDeg) == pytest.approx(x0 + v0 * v0 / (2.0 * decel), abs=1e-3)
 
 
 def test_a_command_running_past_the_travel_end_is_braked_before_it(stage_module: Any) -> None:
