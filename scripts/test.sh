@@ -3,6 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+.venv/bin/python -c "import mkdocs, latex2mathml" 2>/dev/null || .venv/bin/python -m pip install -q -e ".[docs]"  # the site build test
 .venv/bin/ruff check sim tests bench
 .venv/bin/mypy sim
 .venv/bin/armbench check st/

@@ -26,8 +26,9 @@ from latex2mathml.converter import convert as latex_to_mathml
 from markdown import Extension, Markdown
 from markdown.inlinepatterns import InlineProcessor
 
-# A formula may not start or end with a space, so "costs $5 and $6" stays text.
-_INLINE = r"(?<![\\$\w])\$(?![\s$])(.+?)(?<![\s\\])\$(?![\w$])"
+# An inline formula may not start or end with a space nor hold a "$" or a line break, so
+# "costs $5 and $6" stays text (the rule of Pandoc and GitHub).
+_INLINE = r"(?<![\\$\w])\$(?![\s$])([^$\n]+?)(?<![\s\\])\$(?![\w$])"
 _DISPLAY = r"(?<!\\)\$\$(.+?)\$\$"
 _FENCE_OPEN = re.compile(r"^(\s*)(```+|~~~+)[ \t]*([A-Za-z0-9_+-]+)[^\n`]*$", re.M)
 _LINK = re.compile(r"(!?\[[^\]]*\]\()([^)\s]+)((?:\s+\"[^\"]*\")?\))")
@@ -128,4 +129,15 @@ def on_post_build(config: Any) -> None:
     from pygments.formatters import HtmlFormatter
 
     css = HtmlFormatter(style="default").get_style_defs(".codehilite")
-    (Path(config.site_dir) / "css" / "pygments.css").write_text(css, encoding="utf-8")
+    (Path(config.site_dir) / "css" / "pygments.css").write_text(css + _SITE_CSS, encoding="utf-8")
+
+
+# The theme styles only tables that carry its own class; Markdown tables carry none. Wide
+# formulas and tables scroll instead of overflowing the column.
+_SITE_CSS = """
+table { border-collapse: collapse; margin: 0 0 1em; display: block; overflow-x: auto; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; vertical-align: top; }
+thead th { background: #f2f2f2; }
+div.formula { overflow-x: auto; margin: 0.6em 0 1em; }
+math { font-size: 1.08em; }
+"""

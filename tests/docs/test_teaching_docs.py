@@ -1,8 +1,8 @@
 """The teaching pages never rot: their code runs, their ST checks, their links resolve.
 
 Conventions for fenced code blocks in docs/kinematics.md, docs/servo-pwm.md,
-docs/frames-dh.md, docs/jacobians.md, docs/teachers-guide.md and docs/labs/*.md (the info string after the opening
-fence; renderers use its first word):
+docs/frames-dh.md, docs/jacobians.md, docs/teachers-guide.md and docs/labs/*.md (the info
+string after the opening fence; renderers use its first word):
 
 * ```` ```python ````            runnable: executed, in order, one namespace per page (like a
                                   notebook), with the repository root as the working directory.
