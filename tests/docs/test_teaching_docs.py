@@ -1,8 +1,8 @@
 """The teaching pages never rot: their code runs, their ST checks, their links resolve.
 
 Conventions for fenced code blocks in docs/kinematics.md, docs/servo-pwm.md,
-docs/frames-dh.md, docs/jacobians.md and docs/labs/*.md (the info string after the opening
-fence; renderers use its first word):
+docs/frames-dh.md, docs/jacobians.md, docs/teachers-guide.md and docs/labs/*.md (the info
+string after the opening fence; renderers use its first word):
 
 * ```` ```python ````            runnable: executed, in order, one namespace per page (like a
                                   notebook), with the repository root as the working directory.
@@ -37,7 +37,8 @@ from armbench.compiler import check_files
 REPO = Path(__file__).resolve().parents[2]
 DOCS = REPO / "docs"
 CODE_PAGES = sorted([DOCS / "kinematics.md", DOCS / "servo-pwm.md", DOCS / "orientation.md",
-                     DOCS / "frames-dh.md", DOCS / "jacobians.md", *(DOCS / "labs").glob("*.md")])
+                     DOCS / "frames-dh.md", DOCS / "jacobians.md", DOCS / "teachers-guide.md",
+                     *(DOCS / "labs").glob("*.md")])
 LINK_PAGES = sorted([*DOCS.glob("*.md"), *(DOCS / "labs").glob("*.md")])
 # where `armbench check` looks names up (armbench.cli): the ST library, the controller's blocks
 LIB = [*sorted((REPO / "st").glob("*.st")),
