@@ -102,7 +102,8 @@ def mark_outside_links(markdown: str, page_src: Path, docs_dir: Path) -> str:
 
 def restore_outside_links(page_html: str) -> str:
     """Puts the relative targets back unchanged: with use_directory_urls off, site/x.html sits
-    at the same depth as its Markdown page under docs, so the target reaches the same file of the checkout."""
+    at the same depth as its Markdown page under docs, so the target reaches the same file of
+    the checkout."""
     return page_html.replace(_OUTSIDE, "")
 
 

@@ -55,8 +55,8 @@ def program_variables(source: CheckedProgram | Sequence[str | Path],
     """The located variables of a checked program, or of the program in ``paths`` (the files
     the PLC was built from, library included); ``name`` says which for the page. A program
     that declares every register of the arm controller's map at the same location and type is
-    the controller (or a version of it with more): the view then draws the arm and offers its commands. Raises
-    CompileFailed when the files do not check."""
+    the controller (or a version of it with more): the view then draws the arm and offers its
+    commands. Raises CompileFailed when the files do not check."""
     pm = program_map(source)
     mine = {r.name.upper(): r for r in pm.registers}
     controller = controller_map()
