@@ -409,7 +409,7 @@ def _export_files(args: argparse.Namespace) -> list[Path]:
     if not analysis.library.kept:
         return selection.given
     lib = Library(selection.library, Diagnostics())
-    library_files = set(lib.parsed)
+    library_files = set(lib.order)
     mine = {key: d for u in analysis.program.units if u.pos.file not in library_files
             for d in declarations(u) for key in d.declares}
     files = list(analysis.library.files)
