@@ -10,7 +10,10 @@ from pathlib import Path
 import pytest
 
 from armbench.compiler import units, uses
+from armbench.compiler.diagnostics import Diagnostics
 from armbench.compiler.driver import analyse_program
+from armbench.compiler.frontend import parse_source as real_parse
+from armbench.compiler.parse import ParsedFile
 
 LIBRARY = """FUNCTION Twice : DINT
   VAR_INPUT
@@ -55,15 +58,15 @@ def codes(prog: Path, lib: Path) -> list[str]:
 def count_front_ends(monkeypatch: pytest.MonkeyPatch) -> list[Path]:
     """Replaces the uncached front end and the library's name parse by counting wrappers."""
     seen: list[Path] = []
-    real_front, real_parse = units.front_end, uses.parse_source
+    real_front = units.front_end
 
     def front_end(path: Path, data: bytes) -> units.FileFront:
         seen.append(path)
         return real_front(path, data)
 
-    def parse_source(path: Path, data: bytes, diags: object) -> object:
+    def parse_source(path: Path, data: bytes, diags: Diagnostics) -> ParsedFile | None:
         seen.append(path)
-        return real_parse(path, data, diags)  # type: ignore[arg-type]
+        return real_parse(path, data, diags)
 
     monkeypatch.setattr(units, "front_end", front_end)
     monkeypatch.setattr(uses, "parse_source", parse_source)

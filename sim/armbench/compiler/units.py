@@ -9,6 +9,7 @@ written anew; a cache folder that cannot be written to only costs the time saved
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import os
 import pickle
@@ -72,11 +73,20 @@ class UnitCache:
     def get(self, kind: str, path: Path, data: bytes, want: type) -> object | None:
         try:
             with open(self._key(kind, path, data), "rb") as f:
-                value = pickle.load(f)
-        except FileNotFoundError:
+                blob = f.read()
+        except OSError:
             return None
+        # The collector would scan the tree again and again while it is being built: off for
+        # the load, which makes no cycles worth collecting.
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            value = pickle.loads(blob)
         except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
             return None
+        finally:
+            if collecting:
+                gc.enable()
         return value if isinstance(value, want) else None
 
     def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
