@@ -8,6 +8,8 @@
 
 Each line gives the best wall time of R runs and the CPU time (user+sys, the C compiler
 included) of that run: the machine may be shared, and CPU time says what load cannot.
+An installed package has its bytecode compiled; with PYTHONDONTWRITEBYTECODE set every
+`armbench` start compiles the modules it imports again (the header line says which).
 Goals: check/run <= 0.5 s, cached build of st/ <= 0.2 s, cold build of st/ <= 2 s.
 Run: PYTHONPATH=sim .venv/bin/python bench/startup.py [repeats]
 """
@@ -89,7 +91,10 @@ def main(repeat: int) -> None:
 
     st_files = sorted((ROOT / "st").glob("*.st"))
     lines = sum(len(f.read_text().splitlines()) for f in st_files)
-    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {repeat}")
+    bytecode = "not written (PYTHONDONTWRITEBYTECODE)" if os.environ.get(
+        "PYTHONDONTWRITEBYTECODE") else "cached"
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {repeat}; "
+          f"Python bytecode {bytecode}")
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
         os.environ["ARMBENCH_CACHE"] = str(cache)
