@@ -26,6 +26,7 @@ from .compiler.driver import Analysis, analyse_program, expand
 from .compiler.emit_c import emit
 from .compiler.symbols import CheckedProgram
 from .compiler.uses import Library, declarations
+from .demo_options import add_demo_arguments, add_follow_arguments
 from .faults import PlcFault
 from .locate import (
     LibrarySelection,
@@ -408,7 +409,7 @@ def _export_files(args: argparse.Namespace) -> list[Path]:
     if not analysis.library.kept:
         return selection.given
     lib = Library(selection.library, Diagnostics())
-    library_files = set(lib.parsed)
+    library_files = set(lib.order)
     mine = {key: d for u in analysis.program.units if u.pos.file not in library_files
             for d in declarations(u) for key in d.declares}
     files = list(analysis.library.files)
@@ -513,12 +514,10 @@ def make_parser() -> argparse.ArgumentParser:
     x.set_defaults(func=cmd_export)
     d = sub.add_parser("demo", help="drive the 360-point circle over Modbus through the "
                        "controller, PCA9685 and servo models")
-    from .demo import add_arguments
-    add_arguments(d)
+    add_demo_arguments(d)
     d.set_defaults(func=cmd_demo)
     di = sub.add_parser("demo-imu", help="the simulated hand's IMU drives the 5-axis arm's "
                         "tool over Modbus (FollowImu), in simulated time")
-    from .follow_demo import add_arguments as add_follow_arguments
     add_follow_arguments(di)
     di.set_defaults(func=cmd_demo_imu)
     return p

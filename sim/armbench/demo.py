@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from . import argtypes
 from .controller_client import ArmControllerClient, Calibration, MotionRecorder
+from .demo_options import DEFAULT_OUT, add_demo_arguments
 from .plant import arm
 from .plant.pca9685 import PCA9685
 from .plant.servo import MG996R
@@ -39,7 +39,6 @@ from .softplc.scan import SoftPlc
 # Channels 0, 1, 2 = Base, Shoulder, Elbow (Controller.st).
 SERVO_CHANNELS = (0, 1, 2)
 PCA9685_ADDRESS = 0x40
-DEFAULT_OUT = Path("out") / "demo"
 
 
 @dataclass
@@ -284,28 +283,15 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
 
 
 def run_from_args(a: argparse.Namespace) -> int:
-    """Run with the options of :func:`add_arguments`."""
+    """Run with the options of :func:`armbench.demo_options.add_demo_arguments`."""
     return run(points=a.points, radius=a.radius, plane=a.plane,
                out_dir=None if a.no_plots else Path(a.out), poll_ms=a.poll_ms)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="armbench demo", description=__doc__)
-    add_arguments(p)
+    add_demo_arguments(p)
     return run_from_args(p.parse_args(argv))
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--points", type=argtypes.positive_count, default=360,
-                   help="points on the circle (360)")
-    p.add_argument("--radius", type=argtypes.positive_length, default=40.0, help="mm (40)")
-    p.add_argument("--plane", choices=("xy", "xz"), default="xy",
-                   help="xy horizontal (default) or xz vertical, centre (150, 0, 120) mm")
-    p.add_argument("--out", default=str(DEFAULT_OUT),
-                   help="folder for the PNG plots (out/demo, git-ignored)")
-    p.add_argument("--no-plots", action="store_true", help="skip the plots")
-    p.add_argument("--poll-ms", type=argtypes.seconds, default=0.5,
-                   help="sleep between answer polls in ms (0.5; 0 = busy loop)")
 
 
 if __name__ == "__main__":

@@ -393,20 +393,6 @@ def imu_rate(text: str) -> float:
     return value
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seconds", type=argtypes.float_between(1.0, 600.0, "s"), default=20.0,
-                   help="follow time, s (default 20)")
-    p.add_argument("--heading", type=argtypes.float_between(-360.0, 360.0, "deg"),
-                   default=10.0,
-                   help="the arm's X axis from magnetic north, deg (default 10)")
-    p.add_argument("--flange-fixed", action="store_true",
-                   help="hold the flange point instead of the tool tip")
-    p.add_argument("--seed", type=argtypes.count, default=5,
-                   help="noise seed of the simulated IMU (default 5)")
-    p.add_argument("--rate", type=imu_rate, default=100.0,
-                   help="IMU sample rate, Hz: 100 divided by a whole number (default 100)")
-
-
 def run_from_args(args: argparse.Namespace, out: TextIO | None = None) -> int:
     try:
         with paced_controller() as ctl:

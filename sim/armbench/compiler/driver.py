@@ -15,12 +15,10 @@ from . import ast as A
 from .build import build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .emit_c import CUnit, emit
-from .frontend import check_syntax, drop_syntax_cascades, read_parse
-from .lower import lower
-from .parse import ParsedFile
 from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
+from .units import UnitCache
 from .uses import Library, LibraryUse
 
 if TYPE_CHECKING:
@@ -52,23 +50,25 @@ def analyse_program(paths: Sequence[str | Path],
                     library: Sequence[str | Path] = ()) -> Analysis:
     """Check the program ``paths`` together with the declarations of ``library`` it uses."""
     diags = Diagnostics()
-    parsed: list[ParsedFile] = []
-    for path in expand(paths):
-        pf = read_parse(path, diags)
-        if pf is not None:
-            check_syntax(pf, diags)
-            parsed.append(pf)
-    drop_syntax_cascades(diags)
+    cache = UnitCache()
+    files = expand(paths)
+    fronts = [cache.front(path) for path in files]
+    for front in fronts:
+        diags.extend(front.syntax)
     if diags.has_errors:
         return Analysis(None, diags)  # no semantic checks after a syntax error: no cascades
-    units: list[A.SourceUnit] = [lower(pf, diags) for pf in parsed]
+    units: list[A.SourceUnit] = []
+    for front in fronts:
+        assert front.unit is not None  # only a syntax error leaves a file unlowered
+        diags.extend(front.lowering)
+        units.append(front.unit)
     if diags.has_errors:
         return Analysis(None, diags)
-    given = {Path(pf.path).resolve() for pf in parsed}
+    given = {path.resolve() for path in files}
     lib_files = [p for p in expand(library) if p.resolve() not in given]
     use = LibraryUse()
     if lib_files:
-        lib = Library(lib_files, diags)
+        lib = Library(lib_files, diags, cache)
         use = lib.select(units)
         if diags.has_errors:
             return Analysis(None, diags, use)

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import cffi
-import numpy as np
 
 from ..faults import PlcFault
 from . import ast as A
@@ -129,7 +129,9 @@ class Values:
                 else:
                     out.append(v)
             return out
-        if isinstance(value, np.ndarray):
+        # An array only the caller can have made: numpy is not imported for every program
+        np = sys.modules.get("numpy")
+        if np is not None and isinstance(value, np.ndarray):
             return [x.item() for x in value.ravel()]
         raise PlcArgumentError(f"expected a list, got {value!r}")
 

@@ -13,7 +13,7 @@ from .diagnostics import Diagnostics
 from .nesting import check_nesting
 from .parse import ParsedFile, parse_text
 from .rules import check_rules
-from .source import SourcePos, read_source
+from .source import SourcePos, decode_source
 
 # A lexical rule explains its line better than the generic syntax error the parser gives there.
 _EXPLAINING = frozenset({"E0101", "E0102", "E0103", "E0104", "E0107"})
@@ -22,8 +22,18 @@ _EXPLAINING = frozenset({"E0101", "E0102", "E0103", "E0104", "E0107"})
 def read_parse(path: Path, diags: Diagnostics) -> ParsedFile | None:
     """The file's syntax tree (syntax errors as E0100), or None when it cannot be read."""
     try:
-        src = read_source(path)
-    except (OSError, UnicodeDecodeError) as exc:
+        data = path.read_bytes()
+    except OSError as exc:
+        diags.error(SourcePos(str(path), 1, 1), "E0001", f"cannot read {path}: {exc}")
+        return None
+    return parse_source(path, data, diags)
+
+
+def parse_source(path: Path, data: bytes, diags: Diagnostics) -> ParsedFile | None:
+    """The syntax tree of the file ``path`` whose bytes are ``data`` (None: not text)."""
+    try:
+        src = decode_source(data)
+    except UnicodeDecodeError as exc:
         diags.error(SourcePos(str(path), 1, 1), "E0001", f"cannot read {path}: {exc}")
         return None
     if src.assumed:

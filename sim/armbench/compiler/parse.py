@@ -75,22 +75,37 @@ def _parser() -> ts.Parser:
 
 
 def _mask_enum_literals(text: str) -> tuple[str, frozenset[int]]:
-    offsets: set[int] = set()
+    hits = [m.start(2) - 1 for m in _ENUM_LITERAL.finditer(text)
+            if m.group(1).upper() not in _GRAMMAR_PREFIXES]
+    if not hits:
+        return text, frozenset()
     chars = list(text)
-    for m in _ENUM_LITERAL.finditer(text):
-        if m.group(1).upper() in _GRAMMAR_PREFIXES:
-            continue
-        hash_index = m.start(2) - 1
-        chars[hash_index] = "_"
-        offsets.add(len(text[:hash_index].encode("utf-8")))
+    offsets: set[int] = set()
+    ascii_ = text.isascii()
+    done_chars = done_bytes = 0  # byte offsets counted on from the last hit: linear in size
+    for i in hits:
+        chars[i] = "_"
+        if not ascii_:
+            done_bytes += len(text[done_chars:i].encode("utf-8"))
+            done_chars = i
+        offsets.add(i if ascii_ else done_bytes)
     return "".join(chars), frozenset(offsets)
+
+
+def _line_starts(data: bytes) -> list[int]:
+    starts = [0]
+    i = data.find(b"\n")
+    while i >= 0:
+        starts.append(i + 1)
+        i = data.find(b"\n", i + 1)
+    return starts
 
 
 def parse_text(path: str, text: str, diags: Diagnostics) -> ParsedFile:
     masked, offsets = _mask_enum_literals(text)
     data = masked.encode("utf-8")
     tree = _parser().parse(data)
-    line_starts = [0] + [i + 1 for i, b in enumerate(data) if b == 0x0A]
+    line_starts = _line_starts(data)
     pf = ParsedFile(path, text, data, tree, offsets, line_starts)
     _report_syntax_errors(pf, diags)
     return pf

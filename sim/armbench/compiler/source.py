@@ -39,7 +39,12 @@ def read_source(path: Path) -> SourceText:
     character), UTF-16 with a BOM, else Windows-1252 -- what CODESYS V2 and TwinCAT 2 write
     (a superset of Latin-1 for text; its five unassigned bytes are read as Latin-1).
     Raises OSError, or UnicodeDecodeError for a BOM followed by invalid text."""
-    data = path.read_bytes()
+    return decode_source(path.read_bytes())
+
+
+def decode_source(data: bytes) -> SourceText:
+    """The text of an ST file's bytes, as :func:`read_source` reads it (UnicodeDecodeError for
+    a BOM followed by invalid text)."""
     if data.startswith(codecs.BOM_UTF8):
         return SourceText(data[len(codecs.BOM_UTF8):].decode("utf-8"), "utf-8-sig")
     if data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):

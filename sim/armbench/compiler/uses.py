@@ -8,9 +8,10 @@ declaration the program does need that refers to such a name gets the program's 
 instead (a modified copy of a library type or block replaces the library's); when the result
 does not check, the driver reports one E0213 instead of the errors inside the library.
 
-Library files are parsed up front (tree-sitter is fast, and the top level of the tree says
-what a file declares), but guarded, checked and lowered only when the program needs one of
-their names.
+What a library file declares is read from the top level of its syntax tree; the file is
+guarded, checked and lowered only when the program needs one of its names. Both results are
+cached by the file's content (units.py): an unchanged library file is parsed once, not once
+per run.
 """
 
 from __future__ import annotations
@@ -24,11 +25,11 @@ from pathlib import Path
 import tree_sitter as ts
 
 from . import ast as A
-from .diagnostics import Diagnostic, Diagnostics
-from .frontend import check_syntax, drop_syntax_cascades, read_parse
-from .lower import lower
+from .diagnostics import Diagnostics
+from .frontend import parse_source
 from .parse import ParsedFile
 from .source import SourcePos
+from .units import UnitCache
 
 Node = A.TypeDecl | A.Pou | A.Configuration
 
@@ -205,23 +206,30 @@ class Library:
     Diagnostics of a library file (its nesting, lexical rules, lowering) go to ``diags``,
     only for the files that are loaded."""
 
-    def __init__(self, paths: Sequence[Path], diags: Diagnostics) -> None:
+    def __init__(self, paths: Sequence[Path], diags: Diagnostics,
+                 cache: UnitCache | None = None) -> None:
         self.diags = diags
-        self.parsed: dict[str, ParsedFile] = {}
-        self.order: dict[str, int] = {}
+        self.cache = UnitCache() if cache is None else cache
+        self.order: dict[str, int] = {}  # the library's readable files, in library order
         self.index: dict[str, tuple[str, str]] = {}  # NAME -> (file, spelling); first wins
-        # a library file's own diagnostics count only once the program needs the file
-        self._parse_diags: dict[str, list[Diagnostic]] = {}
+        self._files: dict[str, tuple[Path, bytes]] = {}
         for path in paths:
-            scratch = Diagnostics()
-            pf = read_parse(path, scratch)
-            if pf is None:
+            try:
+                data = path.read_bytes()
+            except OSError:
                 continue
-            self.parsed[pf.path] = pf
-            self._parse_diags[pf.path] = scratch.items
-            self.order[pf.path] = len(self.order)
-            for key, spelled in top_level_names(pf).items():
-                self.index.setdefault(key, (pf.path, spelled))
+            names = self.cache.get("names", path, data, dict)
+            if not isinstance(names, dict):
+                pf = parse_source(path, data, Diagnostics())
+                if pf is None:
+                    continue
+                names = top_level_names(pf)
+                self.cache.put("names", path, data, names)
+            file = str(path)
+            self._files[file] = (path, data)
+            self.order[file] = len(self.order)
+            for key, spelled in names.items():
+                self.index.setdefault(key, (file, spelled))
         self.units: dict[str, A.SourceUnit | None] = {}
         self._declared: dict[str, Declaration] = {}
 
@@ -233,15 +241,13 @@ class Library:
         """The file lowered (None: it has errors, now in diags)."""
         if file in self.units:
             return self.units[file]
-        pf = self.parsed[file]
+        path, data = self._files[file]
+        front = self.cache.front(path, data)
         mine = Diagnostics()
-        mine.extend(self._parse_diags[file])
-        check_syntax(pf, mine)
-        drop_syntax_cascades(mine)
-        unit = None if mine.has_errors else lower(pf, mine)
+        mine.extend(front.syntax)
+        mine.extend(front.lowering)
         self.diags.extend(mine.items)
-        if mine.has_errors:
-            unit = None
+        unit = None if mine.has_errors else front.unit
         self.units[file] = unit
         for d in declarations(unit) if unit is not None else []:
             for key in d.declares:

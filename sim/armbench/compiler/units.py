@@ -1,0 +1,136 @@
+"""The front end of a file (parse, nesting guard, lexical rules, lowering), cached by content.
+
+The result for a file depends only on its path (positions name it) and its bytes, and on the
+compiler itself: it is pickled under the build cache folder (build.cache_dir) with a key
+hashing all three, so an unchanged library file is never parsed or lowered twice. A cache
+entry that cannot be read back (truncated, corrupt, from another Python) is ignored and
+written anew; a cache folder that cannot be written to only costs the time saved.
+"""
+
+from __future__ import annotations
+
+import gc
+import hashlib
+import os
+import pickle
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import ast as A
+from .build import cache_dir
+from .diagnostics import Diagnostic, Diagnostics
+from .frontend import check_syntax, drop_syntax_cascades, parse_source
+from .lower import lower
+from .source import SourcePos
+
+_COMPILER_DIR = Path(__file__).parent
+_FORMAT = b"armbench-units-1"
+
+
+@dataclass
+class FileFront:
+    """One file through the front end."""
+
+    syntax: list[Diagnostic]  # reading, parsing, nesting, lexical rules (cascades dropped)
+    unit: A.SourceUnit | None  # lowered; None after a syntax error
+    lowering: list[Diagnostic] = field(default_factory=list)
+
+    @property
+    def syntax_errors(self) -> bool:
+        return any(d.severity == "error" for d in self.syntax)
+
+
+def compiler_version() -> bytes:
+    """A digest of the compiler's own sources and of the grammar and Python it runs on: a
+    cache entry written by another compiler is never read."""
+    import tree_sitter_iec61131_3_st as st_grammar
+
+    h = hashlib.sha256(_FORMAT)
+    h.update(sys.version.encode())
+    h.update(str(Path(st_grammar.__file__).stat().st_mtime_ns).encode())
+    for source in sorted(_COMPILER_DIR.glob("*.py")):
+        h.update(source.name.encode())
+        h.update(source.read_bytes())
+    return h.digest()
+
+
+class UnitCache:
+    """Per-file front-end results and declared names, pickled under ``folder``."""
+
+    def __init__(self, folder: Path | None = None) -> None:
+        self.folder = (cache_dir() if folder is None else folder) / "units"
+        self._version = compiler_version()
+
+    def _key(self, kind: str, path: Path, data: bytes) -> Path:
+        h = hashlib.sha256(self._version)
+        for part in (kind.encode(), str(path).encode(), data):
+            h.update(len(part).to_bytes(8, "little"))
+            h.update(part)
+        return self.folder / f"{kind}_{h.hexdigest()[:32]}.pickle"
+
+    def get(self, kind: str, path: Path, data: bytes, want: type) -> object | None:
+        try:
+            with open(self._key(kind, path, data), "rb") as f:
+                blob = f.read()
+        except OSError:
+            return None
+        # The collector would scan the tree again and again while it is being built: off for
+        # the load, which makes no cycles worth collecting.
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            value = pickle.loads(blob)
+        except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
+            return None
+        finally:
+            if collecting:
+                gc.enable()
+        return value if isinstance(value, want) else None
+
+    def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
+        target = self._key(kind, path, data)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            # a temporary name, then a rename: a concurrent reader never sees half a file
+            fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=target.parent)
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+                os.replace(tmp, target)
+            except BaseException:
+                Path(tmp).unlink(missing_ok=True)
+                raise
+        except (OSError, pickle.PicklingError, RecursionError):
+            pass  # not cached: the next run does the work again
+
+    def front(self, path: Path, data: bytes | None = None) -> FileFront:
+        """The file through the front end (``data``: its bytes when already read)."""
+        if data is None:
+            try:
+                data = path.read_bytes()
+            except OSError as exc:
+                return FileFront([Diagnostic(SourcePos(str(path), 1, 1), "E0001",
+                                             f"cannot read {path}: {exc}")], None)
+        hit = self.get("front", path, data, FileFront)
+        if isinstance(hit, FileFront):
+            return hit
+        result = front_end(path, data)
+        self.put("front", path, data, result)
+        return result
+
+
+def front_end(path: Path, data: bytes) -> FileFront:
+    """The file through the front end, uncached."""
+    diags = Diagnostics()
+    pf = parse_source(path, data, diags)
+    if pf is None:
+        return FileFront(diags.items, None)
+    check_syntax(pf, diags)
+    drop_syntax_cascades(diags)
+    if diags.has_errors:
+        return FileFront(diags.items, None)
+    lowering = Diagnostics()
+    unit = lower(pf, lowering)
+    return FileFront(diags.items, unit, lowering.items)
