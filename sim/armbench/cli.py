@@ -386,11 +386,12 @@ def cmd_export(args: argparse.Namespace) -> int:
                              "`armbench export --regenerate` in a checkout)")
         if args.repo is not None:
             raise UsageError("armbench export: error: --repo goes with --regenerate")
-        if args.library_only:
-            exp = generate_library(_given(args.files) if args.files else None, name=args.name)
+        if args.library_only and not args.files:
+            exp = generate_library(name=args.name)
         elif args.files:
             selection = _select(args)
-            exp = generate(selection.given, library=selection.library, name=args.name)
+            make = generate_library if args.library_only else generate
+            exp = make(selection.given, library=selection.library, name=args.name)
         else:
             exp = generate(name=args.name)
         out = Path(args.out)
