@@ -71,8 +71,9 @@ def openplc_parse_st(src: Path, upload: Path, tmp: Path) -> list[tuple[str, str,
     """OpenPLC's own parse_st (and its debug_var class) from webserver/monitoring.py, run on
     the upload; only those two definitions are taken, not the file's Modbus imports."""
     module = ast.parse((src / "webserver" / "monitoring.py").read_text())
-    keep = [n for n in module.body if isinstance(n, ast.ClassDef | ast.FunctionDef)
-            and n.name in ("debug_var", "parse_st")]
+    keep: list[ast.stmt] = [n for n in module.body
+                            if isinstance(n, ast.ClassDef | ast.FunctionDef)
+                            and n.name in ("debug_var", "parse_st")]
     assert len(keep) == 2, "monitoring.py no longer defines debug_var and parse_st"
     space: dict[str, object] = {"debug_vars": []}
     exec(compile(ast.Module(keep, []), "monitoring.py", "exec"), space)  # noqa: S102

@@ -1,9 +1,11 @@
-"""The OpenPLC Runtime upload file: one .st with library, program and configuration.
+"""The OpenPLC Runtime upload file: one .st with program, configuration and what the program
+uses of the library.
 
 Needs: the export Sources in dependency-safe order (``sources.dependency_order``) and the
-CheckedProgram for the contents list of the header. The sources' text is copied unchanged;
-only ``(* *)`` comments are added (a generated header and one separator per source file), so
-the file passes the same checker and MatIEC as its sources.
+CheckedProgram for the contents list of the header. The program's text is copied, its located
+declarations one per line (:func:`.sttext.monitor_friendly`); of a library file, the used
+declarations' text as written; ``(* *)`` comments are added (a generated header and one
+separator per source file), so the file passes the same checker and MatIEC as its sources.
 """
 
 from __future__ import annotations
