@@ -87,6 +87,8 @@ def test_user_program_export_is_named_after_it_and_holds_what_it_uses(
     xml = etree.fromstring((work / "out" / "plcopen" / "Blink.xml").read_bytes())
     assert [p.get("name") for p in xml.iterfind(".//p:pou", N)] == ["DegToRad", "Blink"]
     assert xml.find("p:contentHeader", N).get("name") == "Blink"
+    register_map = (work / "out" / "codesys" / "register-map.md").read_text()
+    assert "`Blink_codesys.xml`" in register_map and "arm_controller" not in register_map
     # the upload stands alone: it checks and compiles without the library
     assert check_files([work / "out" / "openplc" / "Blink.st"]) == []
     assert compile_files([work / "out" / "openplc" / "Blink.st"]) is not None
