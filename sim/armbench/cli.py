@@ -25,7 +25,7 @@ from .compiler.diagnostics import Diagnostic, Diagnostics
 from .compiler.driver import Analysis, analyse_program, expand
 from .compiler.emit_c import emit
 from .compiler.symbols import CheckedProgram
-from .compiler.uses import Library, declarations
+from .compiler.uses import Library
 from .demo_options import add_demo_arguments, add_follow_arguments
 from .faults import PlcFault
 from .locate import (
@@ -369,15 +369,16 @@ def cmd_demo_imu(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from .export import generate
+    from .export import generate, generate_library
 
     if args.regenerate:  # the project's own exports, from the checkout's own sources
-        if args.files or args.out is not None or args.no_library:
+        if (args.files or args.out is not None or args.no_library or args.name
+                or args.library_only):
             raise UsageError("armbench export: error: --regenerate rewrites the checkout's "
                              "plc_project/ from its st/ and Controller.st: give no files, "
-                             "--out or --no-library with it")
+                             "--out, --name, --library-only or --no-library with it")
         project = find_checkout(args.repo)
-        exp = generate(project.sources(), project)
+        exp = generate(None, project)
         out = project.plc_project
     else:
         if args.out is None:
@@ -386,7 +387,14 @@ def cmd_export(args: argparse.Namespace) -> int:
                              "`armbench export --regenerate` in a checkout)")
         if args.repo is not None:
             raise UsageError("armbench export: error: --repo goes with --regenerate")
-        exp = generate(_export_files(args) if args.files else None)
+        if args.library_only and not args.files:
+            exp = generate_library(name=args.name)
+        elif args.files:
+            selection = _select(args)
+            make = generate_library if args.library_only else generate
+            exp = make(selection.given, library=selection.library, name=args.name)
+        else:
+            exp = generate(name=args.name)
         out = Path(args.out)
     if args.check:
         stale = exp.stale(out)
@@ -397,39 +405,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     for path in exp.write(out):
         print(f"wrote {path}")
     return EXIT_OK
-
-
-def _export_files(args: argparse.Namespace) -> list[Path]:
-    """The given files and the library files the export copies. The export copies whole
-    files: those holding what the program uses, and those their other declarations need in
-    turn; one of them declaring a name the program declares too would be declared twice."""
-    selection, analysis = _analyse(args)
-    if analysis.program is None:
-        raise CompileFailed(analysis.diagnostics.sorted())
-    if not analysis.library.kept:
-        return selection.given
-    lib = Library(selection.library, Diagnostics())
-    library_files = set(lib.order)
-    mine = {key: d for u in analysis.program.units if u.pos.file not in library_files
-            for d in declarations(u) for key in d.declares}
-    files = list(analysis.library.files)
-    for file in files:  # grows while it is walked: the files the copied ones need
-        unit = lib.load(file)
-        for d in declarations(unit) if unit is not None else []:
-            for key in sorted(d.uses - d.declares - mine.keys()):
-                need = lib.file_of(key)
-                if need is not None and need not in files:
-                    files.append(need)
-    clashes = sorted((Path(lib.index[key][0]).name, lib.index[key][1]) for key in mine
-                     if key in lib.index and lib.index[key][0] in files)
-    if clashes:
-        where, name = clashes[0]
-        raise ValueError(
-            f"the export copies library files whole, and {where}, which the library "
-            f"declarations your program uses need, also declares {name} as your files do: "
-            "rename yours, or export with --no-library and pass the library files you need")
-    files.sort(key=lambda f: lib.order[f])
-    return [*selection.given, *map(Path, files)]
 
 
 def _library_option(p: argparse.ArgumentParser) -> None:
@@ -503,6 +478,13 @@ def make_parser() -> argparse.ArgumentParser:
                    "library and plc_project/Controller.st)")
     _library_option(x)
     x.add_argument("--out", default=None, help="output folder")
+    x.add_argument("--name", default=None,
+                   help="name of the exported files (default: the program's PROGRAM, else "
+                   "its first file; the arm controller: arm_controller)")
+    x.add_argument("--library-only", action="store_true",
+                   help="blocks and types alone, no PROGRAM or CONFIGURATION, as PLCopen XML "
+                   "for CODESYS (codesys/NAME.xml): the given files, default the armbench "
+                   "library (armbench_library)")
     x.add_argument("--regenerate", action="store_true",
                    help="rewrite the checkout's plc_project/ exports from its st/*.st and "
                    "plc_project/Controller.st")

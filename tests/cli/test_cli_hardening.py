@@ -149,7 +149,7 @@ def test_export_never_touches_plc_project_unless_regenerating(
     assert main(["export", str(user)]) == 2
     assert "--out" in capsys.readouterr().err
     assert main(["export", str(user), "--out", str(tmp_path / "out")]) == 0
-    assert (tmp_path / "out" / "openplc" / "arm_controller.st").is_file()
+    assert (tmp_path / "out" / "openplc" / "Main.st").is_file()  # named after its PROGRAM
     assert _committed() == before
 
 

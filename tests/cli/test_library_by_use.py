@@ -64,7 +64,7 @@ def test_own_declaration_of_a_library_name_checks_runs_and_exports(
     out, err = capsys.readouterr()
     assert '"n": 3' in out and err == ""
     assert main(["export", str(src), "--out", str(tmp_path / "out")]) == 0
-    upload = (tmp_path / "out" / "openplc" / "arm_controller.st").read_text(encoding="utf-8")
+    upload = (tmp_path / "out" / "openplc" / "Main.st").read_text(encoding="utf-8")
     # only the user's program: no library file was needed
     assert "st/ArmAngles.st" not in upload and "ArmAngles" not in upload
 

@@ -10,7 +10,7 @@ import pytest
 
 from armbench.cli import main
 from armbench.compiler import check_files, compile_files
-from armbench.export import OPENPLC_FILE, generate
+from armbench.export import export_paths, generate
 
 # Line 3 has a non-ASCII comment before the error (the literal 2 where REAL is needed), so a
 # column counted in bytes instead of characters would be off.
@@ -84,5 +84,5 @@ def test_export_writes_cp1252_sources_as_utf8(tmp_path: Path) -> None:
                       "    PROGRAM inst0 WITH MainTask : Main;\n"
                       "  END_RESOURCE\nEND_CONFIGURATION\n")
     src = write(tmp_path, "legacy.st", program.encode("cp1252"))
-    text = generate([src]).files[OPENPLC_FILE].decode("utf-8")
+    text = generate([src]).files[export_paths("Main")[0]].decode("utf-8")  # its PROGRAM
     assert "Winkel in \u00b0, f\u00fcr Gr\u00f6\u00dfen" in text

@@ -23,7 +23,7 @@ from plcopen_to_st import xml_to_st
 from armbench.compiler import ast as A
 from armbench.compiler import check_files
 from armbench.compiler.driver import analyse
-from armbench.export import CODESYS_FILE, CODESYS_MAP_FILE, generate
+from armbench.export import CODESYS_FILE, CODESYS_MAP_FILE, export_paths, generate
 from armbench.locate import default_project
 
 REPO = Path(__file__).resolve().parents[2]
@@ -214,7 +214,7 @@ def test_a_program_full_of_clashes_is_laid_out_without_any(tmp_path: Path) -> No
     src.write_text(MIXED_ST)
     exp = generate([src])
     source = source_located([src])
-    placed = xml_located(exp.files[CODESYS_FILE])
+    placed = xml_located(exp.files[export_paths("Mixed")[2]])  # named after its PROGRAM
     assert set(placed) == set(source)
     assert codesys_clashes(source.items()) != []  # the input is full of clashes
     assert codesys_clashes(placed.items()) == []

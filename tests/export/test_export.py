@@ -8,6 +8,7 @@ turned back into ST that must pass the checker and compile: the XML carries the 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 from pathlib import Path
 
@@ -19,7 +20,13 @@ from armbench.cli import main
 from armbench.compiler import CompileFailed, check_files, compile_files
 from armbench.compiler.symbols import CheckedProgram
 from armbench.compiler.types import ArrayType, ElemType, EnumType, StructType, Type
-from armbench.export import OPENPLC_FILE, PLCOPEN_FILE, default_sources, generate
+from armbench.export import (
+    OPENPLC_FILE,
+    PLCOPEN_FILE,
+    default_sources,
+    export_paths,
+    generate,
+)
 from armbench.export.sources import declared_names, used_names
 
 REPO = Path(__file__).resolve().parents[2]
@@ -140,8 +147,9 @@ def project() -> tuple[CheckedProgram, bytes, bytes]:
 def features(tmp_path_factory: pytest.TempPathFactory) -> tuple[CheckedProgram, bytes, bytes]:
     src = tmp_path_factory.mktemp("features") / "Features.st"
     src.write_text(FEATURES_ST)
-    exp = generate([src])
-    return exp.program, exp.files[OPENPLC_FILE], exp.files[PLCOPEN_FILE]
+    exp = generate([src])  # two PROGRAMs: named after the file
+    st_file, xml_file, _, _ = export_paths("Features")
+    return exp.program, exp.files[st_file], exp.files[xml_file]
 
 
 def schema() -> etree.XMLSchema:
@@ -301,20 +309,37 @@ def test_xml_bodies_rebuild_a_program_that_checks_and_compiles(
     assert module is not None
 
 
-def test_openplc_file_is_the_sources_unchanged(
+def test_openplc_file_holds_the_program_and_the_library_declarations_it_uses(
         project: tuple[CheckedProgram, bytes, bytes]) -> None:
     text = project[1].decode("utf-8")
     assert text.startswith("(* ")
-    assert "GENERATED FILE" in text.split("*)", 1)[0]
-    last = 0
-    for src in default_sources():  # every source verbatim, types file first, program last
-        at = text.find(src.read_text(encoding="utf-8"))
+    header = text.split("*)", 1)[0]
+    assert "GENERATED FILE" in header and "upload file of the arm controller" in header
+    # the program's own files verbatim, except that a located declaration and a comment
+    # sharing its line go on lines of their own (for OpenPLC's Monitoring page)
+    controller = REPO / "plc_project" / "Controller.st"
+    for src in [*sorted((REPO / "plc_project" / "controller").glob("*.st")), controller]:
+        lines = [ln for ln in src.read_text(encoding="utf-8").splitlines()
+                 if not re.search(r"\bAT\s+%", ln)]
+        at = text.find(f"source: plc_project/{src.relative_to(REPO / 'plc_project').as_posix()}\n")
         assert at > 0, src
-        if src.name == "ArmAngles.st":
-            assert at < text.find("FUNCTION ")
-        last = max(last, at)
-    assert last == text.find((REPO / "plc_project" / "Controller.st").read_text())
+        for ln in lines:  # in order, each whole line
+            nxt = text.find(ln + "\n", at)
+            assert nxt >= 0, (src.name, ln)
+            at = nxt + len(ln)
     assert text.rstrip().endswith("END_CONFIGURATION")
+    # of the library: each function and block the program uses, verbatim; no other
+    declared = {}
+    for lib in sorted((REPO / "st").glob("*.st")):
+        for m in re.finditer(r"^(FUNCTION_BLOCK|FUNCTION) (\w+).*?^END_\1\b", lib.read_text(),
+                             re.M | re.S):
+            declared[m.group(2)] = m.group(0)
+    in_upload = {m.group(2) for m in re.finditer(r"^(FUNCTION_BLOCK|FUNCTION) (\w+)", text, re.M)}
+    used = set(declared) & in_upload
+    assert 0 < len(used) < len(declared)  # the controller uses most of the library, not all
+    for name in used:
+        assert declared[name] in text, name
+    assert text.find("FUNCTION ") > text.find("source: st/ArmAngles.st")  # types first
 
 
 def test_openplc_file_checks_and_compiles(tmp_path: Path) -> None:

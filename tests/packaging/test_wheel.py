@@ -239,7 +239,7 @@ def test_export_goes_to_the_named_folder_only(installed: Installed) -> None:
     assert proc.returncode == 2 and "not inside a checkout" in proc.stderr, proc.stderr
     proc = installed.armbench("export", "user.st", "--out", "out")
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    text = (installed.work / "out" / "openplc" / "arm_controller.st").read_text("utf-8")
+    text = (installed.work / "out" / "openplc" / "UserMain.st").read_text("utf-8")
     assert "Winkel 180\u00b0, f\u00fcr Tests" in text  # cp1252 in, UTF-8 out
     assert "FUNCTION DegToRad : REAL" in text and "PROGRAM UserMain" in text
     data = installed.site / "armbench" / "_data"

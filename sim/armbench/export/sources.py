@@ -34,12 +34,15 @@ def display_name(path: Path, project: Project | None = None) -> str:
 
 @dataclass(frozen=True)
 class Source:
-    """One ST file: its path, the name shown in generated files, its text and its AST."""
+    """One ST file: its path, the name shown in generated files, its text and its AST. A
+    library file's AST holds only the declarations the program uses (the exports hold only
+    those)."""
 
     path: Path
     name: str
     text: str
     unit: A.SourceUnit
+    library: bool = False
 
 
 def _walk(obj: object) -> Iterator[object]:

@@ -154,3 +154,98 @@ def expr_text(e: A.Expr, parent_prec: int = 0) -> str:
         return f"{expr_text(e.callee, 99)}({args})"
     raise TypeError(f"{e.pos}: cannot render {type(e).__name__}")
 
+
+
+# ------------------------------------------------------------------ declaration slices
+_OPEN = {"STRUCT": "END_STRUCT", "(": ")", "[": "]"}
+
+
+def declaration_span(st: SourceText, node: A.TypeDecl | A.Pou) -> tuple[int, int]:
+    """(start, end) offsets of one declaration in the file: from the start of the line of
+    its header comment (the comment right before it, only whitespace between) or of itself,
+    to the end of its ``END_<kind>`` (a POU) or of the ``;`` ending it (one TYPE definition,
+    inside its TYPE block)."""
+    at = st.offset(node.pos)
+    i = st.token_index(at)
+    start = at
+    if i > 0 and st.tokens[i - 1].kind == "comment":
+        start = st.tokens[i - 1].start
+    line_start = st.line_starts[st.line_of(start) - 1]
+    if not st.text[line_start:start].strip():
+        start = line_start
+    closers: list[str] = []
+    end_kw = "END_" + node.kind.upper() if isinstance(node, A.Pou) else None
+    for tok in st.tokens[i:]:
+        if tok.kind not in ("word", "other"):
+            continue
+        word = tok.text.upper()
+        if end_kw is not None:
+            if word == end_kw:
+                return start, tok.end
+        elif word in _OPEN:
+            closers.append(_OPEN[word])
+        elif closers and word == closers[-1]:
+            closers.pop()
+        elif not closers and word == ";":
+            return start, tok.end
+    raise ValueError(f"{node.pos}: no end of the declaration of {node.name}")
+
+
+_LOCATED = re.compile(r"^(\w+)\s+AT\s+(%\S+?)\s*:\s*(.*?)\s*;$", re.IGNORECASE | re.DOTALL)
+
+
+def monitor_friendly(st: SourceText, decls: list[A.VarDecl]) -> str:
+    """The file's text with each located declaration in ``decls`` on a line of its own as
+    ``Name AT %ADDR : TYPE;`` (single spaces), and any comment that shared its line on the
+    lines above it. Why: the OpenPLC Runtime's Monitoring page (webserver/monitoring.py,
+    parse_st) lists a located variable only from a line without ``(*`` or ``*)`` whose
+    space-separated fields are name, AT, address, colon, type."""
+    by_line: dict[int, list[tuple[int, int, str]]] = {}
+    for d in decls:
+        at = st.offset(d.pos)
+        k = st.token_index(at)
+        while k < len(st.tokens) and st.tokens[k].text != ";":
+            k += 1
+        if k == len(st.tokens):
+            continue
+        text = " ".join(st.text[at:st.tokens[k].end].split())
+        m = _LOCATED.match(text)
+        if m is None:  # e.g. two names before AT: left as written
+            continue
+        rest = re.sub(r"\s*:=\s*", " := ", m.group(3))
+        by_line.setdefault(st.line_of(at), []).append(
+            (at, st.tokens[k].end, f"{m.group(1)} AT {m.group(2)} : {rest};"))
+    if not by_line:
+        return st.text
+    out: list[str] = []
+    pos = 0
+    for line in sorted(by_line):
+        begin = st.line_starts[line - 1]
+        if begin < pos:  # inside a span already rewritten (a comment reaching this line)
+            continue
+        end = st.text.find("\n", begin)
+        end = len(st.text) if end < 0 else end
+        # a comment that starts on this line may run on: take it whole
+        for tok in st.tokens[st.token_index(begin):]:
+            if tok.start >= end:
+                break
+            end = max(end, tok.end)
+        nl = st.text.find("\n", end)
+        end = len(st.text) if nl < 0 else nl
+        line_text = st.text[begin:end]
+        indent = line_text[:len(line_text) - len(line_text.lstrip())]
+        spans = sorted(by_line[line])
+        others: list[str] = []
+        cut = begin
+        for s, e, _ in spans:
+            others.append(st.text[cut:s])
+            cut = e
+        others.append(st.text[cut:end])
+        rest_text = " ".join(" ".join(others).split())
+        out.append(st.text[pos:begin])
+        if rest_text:
+            out.append(indent + rest_text + "\n")
+        out.append("\n".join(indent + new for _, _, new in spans))
+        pos = end
+    out.append(st.text[pos:])
+    return "".join(out)
