@@ -25,6 +25,7 @@ from blark.parse import new_parser, parse_source_code
 from lark import Lark
 
 from armbench.compiler.diagnostics import Diagnostics
+from armbench.compiler.frontend import check_syntax
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
 from armbench.locate import Project
@@ -62,7 +63,9 @@ def files() -> list[str]:
 def second_type_declaration(text: str, path: str) -> tuple[int, str] | None:
     """Line and name of the first declaration that is not the first of its TYPE block."""
     diags = Diagnostics()
-    unit = lower(parse_text(path, text, diags), diags)
+    parsed = parse_text(path, text, diags)
+    check_syntax(parsed, diags)  # the nesting guard lower() requires
+    unit = lower(parsed, diags)
     assert not diags.has_errors, diags.sorted()
     for block in TYPE_BLOCK.finditer(text):
         first = text.count("\n", 0, block.start()) + 1

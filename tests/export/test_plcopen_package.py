@@ -16,6 +16,7 @@ from xsdata.formats.dataclass.parsers import XmlParser
 from xsdata.formats.dataclass.parsers.config import ParserConfig
 
 from armbench.compiler.diagnostics import Diagnostics
+from armbench.compiler.frontend import check_syntax
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
 from armbench.locate import Project
@@ -37,7 +38,9 @@ def source_names() -> tuple[set[str], set[str]]:
     types: set[str] = set()
     for f in Project(REPO).sources():
         diags = Diagnostics()
-        unit = lower(parse_text(str(f), f.read_text(encoding="utf-8"), diags), diags)
+        parsed = parse_text(str(f), f.read_text(encoding="utf-8"), diags)
+        check_syntax(parsed, diags)  # the nesting guard lower() requires
+        unit = lower(parsed, diags)
         assert not diags.has_errors, diags.sorted()
         pous |= {p.name for p in unit.pous}
         types |= {t.name for t in unit.types}
