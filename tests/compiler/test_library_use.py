@@ -201,12 +201,12 @@ def _errors(user: list[A.SourceUnit], lib: Library, kept: list[Declaration]) -> 
 
 
 @pytest.mark.parametrize(("decls", "body"), [
-    ("", "R := Atan2(R, 1.0);"),
+    ("", "R := ArcTan2(R, 1.0);"),
     ("A : ArmAngles; P : Coordinates; G : ArmGeometry;", "A := InverseKinematik_V1(P, G);"),
     ("Pwm : PCA9685_Channels;", ""),
     ("Line : MotionLinear;", ""),
     ("Rate : ChainResolvedRateFixed;", ""),
-], ids=["Atan2", "InverseKinematik_V1", "PCA9685_Channels", "MotionLinear",
+], ids=["ArcTan2", "InverseKinematik_V1", "PCA9685_Channels", "MotionLinear",
         "ChainResolvedRateFixed"])
 def test_exactly_what_is_used(tmp_path: Path, decls: str, body: str) -> None:
     src = tmp_path / "prog.st"

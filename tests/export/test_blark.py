@@ -9,10 +9,10 @@ Set aside, each for a stated reason:
 - st/KinematicsFixedTables.st and the generated upload plc_project/openplc/arm_controller.st
   (which holds it): see TOO_SLOW.
 
-Files with more than one declaration in one TYPE ... END_TYPE block are refused by TwinCAT's
-grammar, which takes one per block. They are strict xfails, and only while blark stops exactly
-at the second declaration of such a block: a file that parses then turns red (XPASS) and must
-leave KNOWN_MULTI_TYPE_BLOCKS; a file refused elsewhere fails.
+TwinCAT's grammar takes one declaration per TYPE ... END_TYPE block (a CODESYS DUT holds one
+type), and refuses a file at the second declaration of a block. Every source declares one type
+per block; test_one_type_per_type_block checks it with our parser, fast and for every file,
+including the ones too slow for blark.
 """
 
 from __future__ import annotations
@@ -42,12 +42,6 @@ TOO_SLOW = {
                                              "st/KinematicsFixedTables.st (and every file "
                                              "parsed here)",
 }
-KNOWN_MULTI_TYPE_BLOCKS = {
-    "st/ArmAngles.st", "st/Kinematics5Axis.st", "st/KinematicsChain.st",
-    "st/KinematicsChainFixed.st", "st/KinematicsFixed.st", "st/MG996R.st", "st/MotionJoint.st",
-    "st/MotionLine.st", "st/MotionProfiles.st", "st/MotionTypes.st",
-    "st/OrientationFilters.st", "st/PCA9685.st", "st/Quaternion.st",
-}
 TYPE_BLOCK = re.compile(r"^TYPE\b.*?^END_TYPE\b", re.S | re.M)
 CONFIGURATION = re.compile(r"^CONFIGURATION\b.*?^END_CONFIGURATION\b[^\n]*", re.S | re.M)
 
@@ -60,11 +54,12 @@ def files() -> list[str]:
     return [rel(p) for p in PROJECT.sources() if rel(p) not in TOO_SLOW]
 
 
-def second_type_declaration(text: str, path: str) -> tuple[int, str] | None:
+def second_type_declaration(path: Path) -> tuple[int, str] | None:
     """Line and name of the first declaration that is not the first of its TYPE block."""
+    text = path.read_text(encoding="utf-8")
     diags = Diagnostics()
-    parsed = parse_text(path, text, diags)
-    check_syntax(parsed, diags)  # the nesting guard before lowering, as the compiler does
+    parsed = parse_text(str(path), text, diags)
+    check_syntax(parsed, diags)  # the nesting guard lower() requires
     unit = lower(parsed, diags)
     assert not diags.has_errors, diags.sorted()
     for block in TYPE_BLOCK.finditer(text):
@@ -86,32 +81,17 @@ def blark_parser() -> Lark:
     return new_parser()
 
 
-def _params() -> list[object]:
-    out = []
-    for f in files():
-        marks = []
-        if f in KNOWN_MULTI_TYPE_BLOCKS:
-            marks = [pytest.mark.xfail(
-                strict=True, raises=AssertionError,
-                reason="more than one declaration in one TYPE ... END_TYPE block: TwinCAT's "
-                       "grammar (blark) takes one per block")]
-        out.append(pytest.param(f, id=f, marks=marks))
-    return out
-
-
-@pytest.mark.parametrize("path", _params())
+@pytest.mark.parametrize("path", files())
 def test_blark_parses(blark_parser: Lark, path: str) -> None:
     text = without_configuration((REPO / path).read_text(encoding="utf-8"))
     res = parse_source_code(text, fn=path, parser=blark_parser)
-    if res.exception is not None and path in KNOWN_MULTI_TYPE_BLOCKS:
-        known = second_type_declaration(text, path)
-        at = getattr(res.exception, "line", None)
-        if known is None or at != known[0]:
-            pytest.fail(f"blark refuses {path} at line {at}, not at a second declaration of a "
-                        f"TYPE block ({known}): {res.exception}")
     assert res.exception is None, f"blark refuses {path}: {res.exception}"
 
 
-def test_known_multi_type_files_exist() -> None:
-    """KNOWN_MULTI_TYPE_BLOCKS names files that are parsed here (no stale names)."""
-    assert KNOWN_MULTI_TYPE_BLOCKS <= set(files())
+@pytest.mark.parametrize("path", PROJECT.sources(), ids=rel)
+def test_one_type_per_type_block(path: Path) -> None:
+    second = second_type_declaration(path)
+    assert second is None, (
+        f"{rel(path)}:{second[0] if second else 0}: {second[1] if second else ''} is the second "
+        "declaration of its TYPE ... END_TYPE block; TwinCAT and CODESYS take one per block: "
+        "give it a TYPE block of its own")

@@ -10,10 +10,9 @@ What RuSTy cannot take is set aside explicitly, never silently:
 - the CONFIGURATION at the end of plc_project/Controller.st (OpenPLC glue): RuSTy's grammar
   has no CONFIGURATION / RESOURCE / TASK. The tests blank those lines (line numbers stay) and
   check that they are the only lines RuSTy refuses.
-- POUs whose names RuSTy's standard library declares too (names are case-insensitive):
-  `FUNCTION Atan2` of st/Kinematics.st against its `ATAN2`. Code generation of the unmodified
-  sources stops at it; those tests are strict xfails naming that cause, so they turn red
-  (XPASS) once the name is changed, and the mark must go.
+- nothing else: no POU of the library or the controller may share a name with a POU of RuSTy's
+  standard library (names are case-insensitive; the library's arc tangent is ArcTan2, not
+  Atan2, for this reason). test_rusty_stdlib_clashes_are_the_known_ones keeps it so.
 """
 
 from __future__ import annotations
@@ -40,15 +39,8 @@ REPO = Path(__file__).resolve().parents[2]
 PROJECT = Project(REPO)
 RUSTY_TIMEOUT_S = 600
 
-# Upper-cased POU name -> why RuSTy cannot generate it next to its standard library.
-KNOWN_CLASHES = {
-    "ATAN2": "st/Kinematics.st declares FUNCTION Atan2 and RuSTy's standard library declares "
-             "FUNCTION ATAN2<T : ANY_REAL> (arithmetic_functions.st); names are "
-             "case-insensitive, so code generation stops at 'Could not find generated stub "
-             "for Atan2'",
-}
-ATAN2_XFAIL = pytest.mark.xfail(strict=True, raises=AssertionError,
-                                reason=KNOWN_CLASHES["ATAN2"])
+# Upper-cased POU name -> why RuSTy cannot generate it next to its standard library: none.
+KNOWN_CLASHES: dict[str, str] = {}
 
 # `path:line:col:{span}: error[E007]: message` (--error-format clang)
 DIAGNOSTIC = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+):\{[^}]*\}: "
@@ -88,7 +80,7 @@ def pous_of(files: Sequence[Path]) -> list[Pou]:
     for f in files:
         diags = Diagnostics()
         parsed = parse_text(str(f), f.read_text(encoding="utf-8"), diags)
-        check_syntax(parsed, diags)  # the nesting guard before lowering, as the compiler does
+        check_syntax(parsed, diags)  # the nesting guard lower() requires
         unit: A.SourceUnit = lower(parsed, diags)
         if diags.has_errors:
             raise AssertionError(f"{f} does not parse: {diags.sorted()}")
@@ -204,8 +196,7 @@ def test_rusty_stdlib_clashes_are_the_known_ones(rusty: Rusty) -> None:
 
 
 # ---------------------------------------------------------------- code generation
-@pytest.mark.parametrize("which", [pytest.param("library", marks=ATAN2_XFAIL),
-                                   pytest.param("controller", marks=ATAN2_XFAIL)])
+@pytest.mark.parametrize("which", ["library", "controller"])
 def test_rusty_generates_every_pou(rusty: Rusty, sources_for_rusty: dict[str, list[Path]],
                                    which: str, tmp_path: Path) -> None:
     files = sources_for_rusty[which]
@@ -241,9 +232,7 @@ def set_aside_build(rusty: Rusty, sources_for_rusty: dict[str, list[Path]],
 
 
 def _pou_params() -> list[object]:
-    return [pytest.param(p.name, id=p.id,
-                         marks=[ATAN2_XFAIL] if p.name.upper() == "ATAN2" else [])
-            for p in pous_of(controller_files())]
+    return [pytest.param(p.name, id=p.id) for p in pous_of(controller_files())]
 
 
 @pytest.mark.parametrize("name", _pou_params())

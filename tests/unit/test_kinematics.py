@@ -137,7 +137,7 @@ def test_atan2_full_quadrant(st_module: Any) -> None:
     cases += [(y, x) for y in (-1.0, 0.0, 1.0, 1e-30, -1e-30) for x in (-1.0, 0.0, 1.0, 1e-30)]
     cases += [(1e-3, -1e6), (-1e-3, -1e6), (1e6, 1e-3), (3.0, 3.0), (-3.0, -3.0)]
     for y, x in cases:
-        got = st_module.call("Atan2", y, x)
+        got = st_module.call("ArcTan2", y, x)
         want = math.atan2(f32(y), f32(x))
         if y == 0.0 and x == 0.0:
             want = 0.0
@@ -148,10 +148,10 @@ def test_atan2_full_quadrant(st_module: Any) -> None:
         worst = max(worst, err)
     print(f"\nAtan2 worst error vs math.atan2: {worst:.3e} rad over {len(cases)} cases")
     assert worst < 1e-6
-    assert st_module.call("Atan2", 0.0, 0.0) == 0.0
-    assert st_module.call("Atan2", 0.0, -1.0) == pytest.approx(math.pi)
-    assert st_module.call("Atan2", 1.0, 0.0) == pytest.approx(math.pi / 2.0)
-    assert st_module.call("Atan2", -1.0, 0.0) == pytest.approx(-math.pi / 2.0)
+    assert st_module.call("ArcTan2", 0.0, 0.0) == 0.0
+    assert st_module.call("ArcTan2", 0.0, -1.0) == pytest.approx(math.pi)
+    assert st_module.call("ArcTan2", 1.0, 0.0) == pytest.approx(math.pi / 2.0)
+    assert st_module.call("ArcTan2", -1.0, 0.0) == pytest.approx(-math.pi / 2.0)
 
 
 def test_fill_transformation_matrix(st_module: Any) -> None:

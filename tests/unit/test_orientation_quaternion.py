@@ -2,7 +2,7 @@
 
 Every case runs the ST (REAL = float32) on float32 inputs and compares with scipy on the
 same inputs. Tolerances: 4e-7 per component for single products/matrix entries (a few float32
-ulp of 1.0: each entry is a sum of at most four products), 1e-5 deg for angles from Atan2/ASIN
+ulp of 1.0: each entry is a sum of at most four products), 1e-5 deg for angles from ArcTan2/ASIN
 (float32 rounding of the argument, amplified near the asin limits only inside the clamp), and
 wider where the text says why.
 """

@@ -116,8 +116,8 @@ def test_wrap_deg180_exact(st_module: Any, figures: Any, x: float) -> None:
 @example(y=0.0, x=-1.0)
 @example(y=0.0, x=0.0)
 def test_atan2_range_and_accuracy(st_module: Any, figures: Any, y: float, x: float) -> None:
-    figures.case("Atan2")
-    got = st_module.call("Atan2", y, x)
+    figures.case("ArcTan2")
+    got = st_module.call("ArcTan2", y, x)
     if math.isnan(x) or math.isnan(y):
         assert math.isnan(got)
         return
@@ -126,7 +126,7 @@ def test_atan2_range_and_accuracy(st_module: Any, figures: Any, y: float, x: flo
     assert -PI32 < got <= PI32, (y, x, got)
     want = math.atan2(y, x) if (x, y) != (0.0, 0.0) else 0.0
     err = abs(math.remainder(got - want, 2.0 * math.pi))
-    figures.error("Atan2", err, "rad")
+    figures.error("ArcTan2", err, "rad")
     assert err <= 4e-7, (y, x, got, want)
 
 
@@ -468,7 +468,7 @@ def test_defect_ik_base_never_minus_180(st_module: Any) -> None:
     fb = st_module.new_fb("InverseKinematik_DH")
     for y in (-1.0e-30, -1.0e-20, -1.0e-9, -1.0e-7):
         t = {"X": -150.0, "Y": y, "Z": 100.0, **dict.fromkeys(TOOL_FIELDS, 0.0)}
-        assert -math.pi < st_module.call("Atan2", y, -150.0)
+        assert -math.pi < st_module.call("ArcTan2", y, -150.0)
         sol = st_module.call("InverseKinematik_V1", Target=t, Geometry=DEFAULT_GEO, ElbowUp=True)
         assert -180.0 < sol["Base"] <= 180.0, (y, sol["Base"])
         fb(Target=t, Geometry=DEFAULT_GEO, ElbowUp=True)

@@ -100,8 +100,9 @@ LIBRARY = """
 armbench library (the ST library `st/*.st` and the controller's blocks
 `plc_project/controller/*.st`, shipped with the package) and add exactly the TYPEs and POUs
 your program uses, with the ones those use in turn. Names are compared case-insensitively, as
-ST does: `ATAN2(y, x)` is the library's `Atan2` (MatIEC has no ATAN2 standard function, so
-with `--no-library` it is E0400). `--no-library` adds nothing.
+ST does: `ARCTAN2(y, x)` is the library's `ArcTan2`. `ATAN2(y, x)` is E0400 with or without
+the library: MatIEC has no ATAN2 standard function, and the library's arc tangent is not
+named so because RuSTy's standard library declares ATAN2. `--no-library` adds nothing.
 
 - A TYPE or POU of your own with a library name is yours: the library's is not added, nor
   anything only it would need. A program declaring `TYPE Vec3` or `FUNCTION DegToRad` and

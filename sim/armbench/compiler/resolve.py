@@ -675,7 +675,7 @@ class Checker(Declarations):
         if sym is None:
             if key == "ATAN2":
                 self.d.error(c.pos, "E0400", "ATAN2 is not an IEC standard function: MatIEC "
-                             "has none (use the library's Atan2)")
+                             "has none (use the library's ArcTan2)")
             else:
                 self.d.error(c.pos, "E0400", f"'{name}' is not a FUNCTION")
             for a in c.args:
