@@ -4,7 +4,8 @@ Also the hypothesis set-up of the property tests (test_properties_*.py and the o
 hypothesis_setup.py): derandomized, without an example database and with a fixed constant
 pool, so that CI draws the same cases in every run, whatever the worker split and test order,
 and never depends on a previous run. `HYPOTHESIS_PROFILE=armbench-thorough` runs ten times as
-many cases (still deterministic) for a local soak.
+many cases (still deterministic) for a local soak; `--hypothesis-seed=N` draws other cases
+(the profile's derandomize=False variant, the same ones for the same N) to explore.
 """
 
 from __future__ import annotations
@@ -27,6 +28,14 @@ else:
     from hypothesis_setup import configure
 
     configure(os.environ.get("HYPOTHESIS_PROFILE", "armbench"))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    try:
+        from hypothesis_setup import use_seed_option
+    except ImportError:  # pragma: no cover - no hypothesis, nothing to seed
+        return
+    use_seed_option(config)
 
 
 @pytest.fixture(scope="session")

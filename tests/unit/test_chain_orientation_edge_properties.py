@@ -29,8 +29,9 @@ from five_axis_ref import fk5
 
 hypothesis = pytest.importorskip("hypothesis")
 rtb = pytest.importorskip("roboticstoolbox")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 F32_MAX = float(np.finfo(np.float32).max)
 EXTREMES = [0.0, -0.0, 1e-38, -1e-38, 1e-45, 1e-30, 1e-12, 1e-6, 1.0, 1e6, 1e30, 1.1e30,
@@ -74,7 +75,7 @@ def puma() -> Any:
 
 # --- KinematicsChain ----------------------------------------------------------------------
 
-@settings(max_examples=150)
+@examples(150)
 @given(joints=st.one_of(st.lists(st.floats(-720.0, 720.0, width=32), min_size=6, max_size=6),
                        st.lists(real(-720.0, 720.0), min_size=6, max_size=6)),
        tool=st.tuples(*[st.floats(-200.0, 200.0, width=32)] * 3))
@@ -101,7 +102,7 @@ def test_chain_fk_and_jacobian(st_module: Any, puma: Any, joints: list[float],
     assert np.abs(J[3:] - ref_j[3:]).max() < 2e-5
 
 
-@settings(max_examples=60)
+@examples(60)
 @given(data=st.data())
 def test_chain_ik_round_trip_near_singular(st_module: Any, puma: Any, data: Any) -> None:
     """Targets anywhere in the limits, often within 1e-6..1e-1 rad of the wrist (q5 = 0) or
@@ -133,7 +134,7 @@ def test_chain_ik_round_trip_near_singular(st_module: Any, puma: Any, data: Any)
         assert rotation_angle_deg(T[:3, :3], Tep[:3, :3]) <= 1e-3
 
 
-@settings(max_examples=120)
+@examples(120)
 @given(target=st.lists(real(-2000.0, 2000.0), min_size=3, max_size=3),
        seed=st.lists(real(-400.0, 400.0), min_size=6, max_size=6),
        lam=real(-0.5, 1.5), tol=real(-1.0, 1.0))
@@ -158,7 +159,7 @@ def test_chain_ik_bad_inputs_give_documented_codes(st_module: Any, puma: Any,
 
 # --- Kinematics5Axis: the tool direction's length -----------------------------------------
 
-@settings(max_examples=200)
+@examples(200)
 @given(scale=st.one_of(st.floats(1e-30, 1e29), st.sampled_from(
            [1e-6 * (1 - 1e-4), 1e-6 * (1 + 1e-4), 1.27e-6, 1e-12, 1e-30, 1e29, 2e30])),
        pitch=st.floats(-170.0, 170.0))
@@ -188,7 +189,7 @@ def test_five_axis_direction_length(st_module: Any, scale: float, pitch: float) 
 
 # --- Quaternion.st and VectorNorm3 --------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(w=real(), x=real(), y=real(), z=real())
 def test_quat_normalise_is_unit_or_fallback(st_module: Any, w: float, x: float, y: float,
                                             z: float) -> None:
@@ -203,7 +204,7 @@ def test_quat_normalise_is_unit_or_fallback(st_module: Any, w: float, x: float, 
         assert np.abs(np.array(out) - vals / np.linalg.norm(vals)).max() < 1e-6
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(axis=st.tuples(real(), real(), real()), angle=real(-1e6, 1e6))
 def test_quat_from_axis_angle_and_matrix(st_module: Any, axis: tuple[float, float, float],
                                          angle: float) -> None:
@@ -222,7 +223,7 @@ def test_quat_from_axis_angle_and_matrix(st_module: Any, axis: tuple[float, floa
         assert np.abs(M - ref.as_matrix()).max() < 1e-5
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(a=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
        b=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
        t=real(-0.5, 1.5))
@@ -241,7 +242,7 @@ def test_quat_angle_and_slerp(st_module: Any, a: list[float], b: list[float],
         < 5e-3
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(v=st.tuples(real(), real(), real()))
 def test_vector_norm3_tiny_and_huge(st_module: Any, v: tuple[float, float, float]) -> None:
     n = st_module.call("VectorNorm3", V={"X": v[0], "Y": v[1], "Z": v[2]})
@@ -255,7 +256,7 @@ def test_vector_norm3_tiny_and_huge(st_module: Any, v: tuple[float, float, float
 
 # --- ToolOrientation.st / ToolOrientation5Axis.st -----------------------------------------
 
-@settings(max_examples=60)
+@examples(60)
 @given(rate=st.floats(5.0, 3600.0), dt=st.floats(0.002, 0.05), ramp=st.floats(0.5, 60.0),
        angle=st.floats(0.05, 179.9), axis=st.lists(st.floats(-1.0, 1.0), min_size=3,
                                                    max_size=3).filter(
@@ -290,7 +291,7 @@ def test_follower_acceleration_limit(st_module: Any, rate: float, dt: float, ram
     assert np.abs(np.diff(speeds)).max() <= acc * dt * (1.0 + 1e-3) + noise
 
 
-@settings(max_examples=60)
+@examples(60)
 @given(q=st.tuples(st.floats(-170.0, 170.0), st.floats(0.0, 170.0), st.floats(20.0, 340.0),
                    st.floats(-179.0, 179.0), st.floats(-179.0, 179.0)),
        flange=st.booleans(),

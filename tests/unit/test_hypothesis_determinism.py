@@ -33,16 +33,23 @@ import sys
 sys.path.insert(0, {str(UNIT_DIR)!r})
 import hypothesis_setup
 
+PROFILE = os.environ.get("DRAWS_PROFILE", "armbench")
 if os.environ.get("DRAWS_SETUP") == "profile-only":   # the set-up without the fixed pool
-    hypothesis_setup.load_profile("armbench")
+    hypothesis_setup.load_profile(PROFILE)
 else:
-    hypothesis_setup.configure("armbench")
+    hypothesis_setup.configure(PROFILE)
+
+
+def pytest_configure(config):
+    if os.environ.get("DRAWS_SETUP") != "profile-only":
+        hypothesis_setup.use_seed_option(config)
 """
 
 PROPERTY_TESTS = """
 import os
 
 from hypothesis import given, strategies as st
+from hypothesis_setup import examples
 
 
 def test_imports_a_module_of_ours():
@@ -55,20 +62,31 @@ def test_imports_a_module_of_ours():
 def test_draws(n, x, s):
     with open(os.environ["DRAWS_OUT"], "a", encoding="utf-8") as out:
         out.write(f"{n!r} {x!r} {s!r}\\n")
+
+
+@examples(30)
+@given(n=st.integers())
+def test_draws_of_a_test_with_its_own_count(n):
+    with open(os.environ["DRAWS_OUT"], "a", encoding="utf-8") as out:
+        out.write(f"{n!r}\\n")
 """
 
 
-def draws(folder: Path, tests: list[str], hash_seed: str, setup: str = "configure") -> str:
-    """What test_draws drew, one line per example, run after `tests` in one pytest process."""
+def draws(folder: Path, tests: list[str], hash_seed: str, setup: str = "configure",
+          seed: int | None = None, profile: str = "armbench",
+          probe: str = "test_draws") -> str:
+    """What the `probe` test drew, one line per example, run after `tests` in one pytest
+    process (with `--hypothesis-seed=seed` if a seed is given)."""
     out = folder / f"draws-{len(list(folder.glob('draws-*')))}.txt"
     env = {k: v for k, v in os.environ.items()
            if not k.startswith(("PYTEST_", "HYPOTHESIS_", "PYTHONHASHSEED"))}
-    env.update(PYTHONHASHSEED=hash_seed, DRAWS_OUT=str(out), DRAWS_SETUP=setup)
-    ids = [f"test_property.py::{name}" for name in [*tests, "test_draws"]]
+    env.update(PYTHONHASHSEED=hash_seed, DRAWS_OUT=str(out), DRAWS_SETUP=setup,
+               DRAWS_PROFILE=profile)
+    ids = [f"test_property.py::{name}" for name in [*tests, probe]]
     proc = subprocess.run(
         # no armbench plugin: its import analyses the controller (a second per process)
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist",
-         "-p", "no:armbench", *ids],
+         "-p", "no:armbench", *([] if seed is None else [f"--hypothesis-seed={seed}"]), *ids],
         cwd=folder, env=env, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return out.read_text(encoding="utf-8")
@@ -106,3 +124,27 @@ def test_the_suite_runs_with_the_fixed_pool() -> None:
     import armbench.compiler  # noqa: F401
 
     assert len(providers._get_local_constants()) == 0
+
+
+def test_a_seed_on_the_command_line_draws_other_examples_the_same_for_the_same_seed(
+        folder: Path) -> None:
+    # The soak's --seed: derandomize=True alone would ignore --hypothesis-seed and draw the
+    # fixed examples again, so a "new" soak would only repeat CI's.
+    fixed = draws(folder, [], hash_seed="1")
+    seed_1 = draws(folder, [], hash_seed="1", seed=1)
+    seed_1_again = draws(folder, ["test_imports_a_module_of_ours"], hash_seed="2", seed=1)
+    seed_2 = draws(folder, [], hash_seed="1", seed=2)
+    assert seed_1.count("\n") == seed_2.count("\n") == 400   # still the profile's examples
+    assert seed_1 != fixed
+    assert seed_2 != seed_1
+    assert seed_1_again == seed_1
+
+
+def test_a_test_with_its_own_example_count_scales_with_the_profile(folder: Path) -> None:
+    # examples(n) is CI's n under armbench and ten times n under the thorough soak; a bare
+    # @settings(max_examples=n) overrode the profile, so the "10x" soak ran CI's n again
+    probe = "test_draws_of_a_test_with_its_own_count"
+    ci = draws(folder, [], hash_seed="1", probe=probe)
+    thorough = draws(folder, [], hash_seed="1", profile="armbench-thorough", probe=probe)
+    assert ci.count("\n") == 30
+    assert thorough.count("\n") == 300

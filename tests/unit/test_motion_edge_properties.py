@@ -18,8 +18,9 @@ import pytest
 from motion_support import BAD_PARAMETER, DT, NOT_FINITE, GroupSim, make_group
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 F32_MAX = float(np.finfo(np.float32).max)
 LIBRARY_FINITE = 1.0e30  # IsFiniteReal: beyond is "not finite"
@@ -52,7 +53,7 @@ extreme = st.one_of(
     st.floats(-F32_MAX, F32_MAX, width=32))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(dist=st.one_of(st.floats(1e-6, 1e3), st.floats(1e3, 1e7)),
        sign=st.sampled_from([1.0, -1.0]), acc=positive,
        stretch=st.floats(0.5, 1e5))
@@ -74,7 +75,7 @@ def test_trapezoid_plan_matches_closed_form(st_module: Any, dist: float, sign: f
     assert end["Pos"] == dist and end["Vel"] == 0.0
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(dist=extreme, v0=extreme, duration=extreme, acc=extreme, vmax=extreme, jerk=extreme,
        t=extreme)
 def test_profiles_never_nan(st_module: Any, dist: float, v0: float, duration: float,
@@ -151,7 +152,7 @@ command = st.fixed_dictionaries({
 })
 
 
-@settings(max_examples=25)
+@examples(25)
 @given(start=joints3, target=joints3, profile=st.integers(0, 3),
        velocity=st.floats(60.0, 200.0), acc=st.floats(150.0, 1000.0),
        changes=st.lists(command, min_size=1, max_size=6))
@@ -172,7 +173,7 @@ def test_joint_move_ignores_inputs_changed_while_busy(
     check_path(calm, target, vmax, amax, synchronised=profile >= 1)
 
 
-@settings(max_examples=25)
+@examples(25)
 @given(start=joints3, target=joints3, profile=st.integers(1, 2),
        velocity=st.floats(0.05, 5.0), slow_joint=st.floats(1e-4, 0.5))
 def test_slow_synchronised_moves_arrive_together(st_module: Any, start: list[float],
@@ -189,7 +190,7 @@ def test_slow_synchronised_moves_arrive_together(st_module: Any, start: list[flo
     check_path(sim, target, min(velocity, MAX_VEL), MAX_ACC, synchronised=True)
 
 
-@settings(max_examples=60)
+@examples(60)
 @given(field=st.sampled_from(["Velocity", "Acceleration", "Jerk", "CycleTime", "Target"]),
        value=extreme, profile=st.integers(0, 3))
 def test_joint_move_extreme_inputs(st_module: Any, field: str, value: float,

@@ -15,15 +15,16 @@ import pytest
 from motion_support import DT, GroupSim, make_group
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 MAX_VEL, MAX_ACC = 90.0, 300.0
 angle = st.floats(-150.0, 150.0, allow_nan=False).map(lambda x: float(np.float32(x)))
 joints3 = st.lists(angle, min_size=3, max_size=3)
 
 
-@settings(max_examples=40)
+@examples(40)
 @given(start=joints3, first=joints3, second=joints3, p1=st.integers(0, 3),
        p2=st.integers(0, 3), v1=st.floats(5.0, 200.0), v2=st.floats(5.0, 200.0),
        a1=st.floats(20.0, 1000.0), a2=st.floats(20.0, 1000.0), k=st.integers(1, 80))

@@ -26,8 +26,9 @@ from scipy.spatial.transform import Rotation
 
 hypothesis = pytest.importorskip("hypothesis")
 rtb = pytest.importorskip("roboticstoolbox")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 F32_MAX = float(np.finfo(np.float32).max)
 REAL_1E30 = float(np.float32(1.0e30))
@@ -94,7 +95,7 @@ def table_code(c: dict[str, Any]) -> int:
     return 0
 
 
-@settings(max_examples=120)
+@examples(120)
 @given(c=tables())
 def test_chain_check_reach_scale(st_module: Any, c: dict[str, Any]) -> None:
     code = st_module.call("ChainCheck", Chain=c)
@@ -122,7 +123,7 @@ def test_chain_check_reach_scale(st_module: Any, c: dict[str, Any]) -> None:
 
 # --- Frames, tool pose, Jacobians ------------------------------------------------------------
 
-@settings(max_examples=120)
+@examples(120)
 @given(q=st.lists(st.floats(-720.0, 720.0, width=32), min_size=6, max_size=6),
        tool=st.tuples(*[st.floats(-200.0, 200.0, width=32)] * 3), modified=st.booleans(),
        bad=st.sampled_from([None, math.nan, math.inf, 1.1e30]))
@@ -169,7 +170,7 @@ def test_frames_tool_pose_and_jacobians(st_module: Any, puma: Any, arm4: Any, q:
     assert np.abs(jpos[:, :n] - ref_j[:3] * scale).max() < 2e-3
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(link=st.fixed_dictionaries({
     "A": st.floats(-1e3, 1e3, width=32), "AlphaDeg": st.floats(-180.0, 180.0, width=32),
     "D": st.floats(-1e3, 1e3, width=32), "ThetaOffsetDeg": st.floats(-180.0, 180.0, width=32),
@@ -210,7 +211,7 @@ def test_link_transform_any_value(st_module: Any, link: dict[str, Any], modified
 
 # --- Linear algebra ----------------------------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(size=st.sampled_from([1, 2, 3, 4, 5, 6, 0, 7]), seed=st.integers(0, 2**32 - 1),
        cond=st.sampled_from([1.0, 1e2, 1e4, 1e6]), kind=st.sampled_from(
            ["spd", "spd", "indefinite", "nan"]))
@@ -252,7 +253,7 @@ def test_cholesky_and_solve(st_module: Any, size: int, seed: int, cond: float,
     assert np.abs(x - want).max() <= 1e-4 * cond * max(1.0, np.abs(want).max())
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(rows=st.integers(1, 6), cols=st.integers(1, 6), seed=st.integers(0, 2**32 - 1),
        lam=st.floats(1e-3, 1.0), band=st.floats(1e-3, 0.5), lmax=st.floats(0.0, 1.0),
        extra=st.floats(0.0, 1.0), mu=st.floats(1.0, 100.0), cap=st.floats(0.01, 10.0),
@@ -309,7 +310,7 @@ def to_mat4(pose: tuple[list[float], list[float]]) -> np.ndarray:
     return m.astype(np.float32).astype(float)
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(current=poses, target=poses, near_flip=st.booleans())
 def test_pose_error(st_module: Any, current: Any, target: Any, near_flip: bool) -> None:
     cur = to_mat4(current)
@@ -326,7 +327,7 @@ def test_pose_error(st_module: Any, current: Any, target: Any, near_flip: bool) 
     assert np.linalg.norm(e[3:]) <= math.pi + 1e-5
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(q=st.lists(st.floats(-170.0, 170.0), min_size=6, max_size=6),
        dx=st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
        position_only=st.booleans(), lam=st.one_of(st.floats(1e-3, 0.05), st.sampled_from(
@@ -359,7 +360,7 @@ def test_resolved_rate_meets_the_displacement(st_module: Any, puma: Any, q: list
         assert np.abs(achieved - task).max() <= 0.05 * np.abs(task).max() + 1e-4
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(q=st.lists(st.floats(-170.0, 170.0), min_size=6, max_size=6),
        qt=st.lists(st.floats(-170.0, 170.0), min_size=6, max_size=6),
        rows=st.sampled_from([3, 6]))
@@ -393,7 +394,7 @@ def test_chain_evaluate(st_module: Any, puma: Any, q: list[float], qt: list[floa
 
 # --- Fixed point -------------------------------------------------------------------------------
 
-@settings(max_examples=400)
+@examples(400)
 @given(value=st.one_of(st.integers(-(2**62) + 1, 2**62 - 1), st.sampled_from(
            [0, 1, -1, 2**62 - 1, -(2**62) + 1, 3, -3, 5, -5])),
        bits=st.one_of(st.integers(-70, 70), st.sampled_from([0, 1, 62, 63, -62, -63])))
@@ -416,7 +417,7 @@ def test_shift_lint_and_bit_length(st_module: Any, value: int, bits: int) -> Non
     assert n == (value.bit_length() if value >= 0 else 0)
 
 
-@settings(max_examples=400)
+@examples(400)
 @given(angle=st.one_of(st.integers(-(2**31), 2**31 - 1), st.sampled_from(
            [0, 2**22, 2**23, 3 * 2**22, 2**24, -(2**31), 2**31 - 1, -1, 1])))
 def test_sin_cos_turn_fixed(st_module: Any, angle: int) -> None:
@@ -441,7 +442,7 @@ dint = st.one_of(st.integers(-2_500_000, 2_500_000), st.sampled_from(
     [-(2**31), 2**31 - 1, 0, 1, -1, 2_000_000, 2_000_001, -2_000_001]))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(g=st.fixed_dictionaries({k: dint for k in ("A1Um", "A2Um", "A3Um", "A4Um", "A5Um")}),
        q=st.lists(st.one_of(st.integers(-(2**31), 2**31 - 1), st.integers(-(2**23), 2**23)),
                   min_size=4, max_size=4))
@@ -490,7 +491,7 @@ geo4 = st.fixed_dictionaries({
     "ToolDropMm": st.floats(-30.0, 30.0, width=32)})
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(g=geo4, q=st.lists(st.floats(-180.0, 180.0, width=32), min_size=4, max_size=4))
 def test_four_axis_geometry_chain_and_forward(st_module: Any, g: dict[str, float],
                                               q: list[float]) -> None:
@@ -516,7 +517,7 @@ def test_four_axis_geometry_chain_and_forward(st_module: Any, g: dict[str, float
     assert np.abs(t[:3, 3] - ref[:3, 3]).max() < 5e-3
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(p=st.one_of(st.tuples(st.floats(-350.0, 350.0), st.floats(-350.0, 350.0),
                              st.floats(-250.0, 450.0)),
                    st.lists(real(-1e6, 1e6), min_size=3, max_size=3).map(tuple)),
@@ -546,7 +547,7 @@ def test_four_axis_ik_check_and_solve(st_module: Any, arm4: Any, p: tuple[float,
         assert abs(t[2, 0]) < 1e-5  # the last link horizontal
 
 
-@settings(max_examples=40)
+@examples(40)
 @given(targets=st.lists(st.one_of(
     st.tuples(st.floats(120.0, 250.0), st.floats(-100.0, 100.0), st.floats(0.0, 200.0)),
     st.tuples(*[st.sampled_from([math.nan, 1e6, 0.0])] * 3)), min_size=1, max_size=12),
@@ -574,7 +575,7 @@ def test_four_axis_kinematics_block(st_module: Any, arm4: Any,
             assert joints == last
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(a=st.lists(real(-1e3, 1e3), min_size=4, max_size=4), tool=real(0.0, 1e6))
 def test_five_axis_geometry_check(st_module: Any, a: list[float], tool: float) -> None:
     arm_geo = dict(zip(("A1", "A2", "A3", "A4"), (f32(v) for v in a), strict=True))

@@ -23,8 +23,9 @@ from typing import Any
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import example, given, settings  # noqa: E402
+from hypothesis import example, given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 NO_ERROR, UNREACHABLE, SINGULAR, BAD_GEOMETRY = 0, 1, 2, 4
 DINT_MIN, DINT_MAX = -(2**31), 2**31 - 1
@@ -323,7 +324,7 @@ def ik_targets(draw: st.DrawFn) -> tuple[int, int, int, dict[str, int], bool]:
     return x, y, z, g, draw(st.booleans())
 
 
-@settings(max_examples=1000)
+@examples(1000)
 @given(case=ik_targets())
 @example(case=(-2016, 2775, 0, {"A1Mm100": 0, "A2Mm100": 3430, "A3Mm100": 1, "A4Mm100": 1},
                False))  # at the shoulder, a3 = a4: Singular (DistF rounds below 0)

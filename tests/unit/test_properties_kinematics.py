@@ -25,8 +25,9 @@ import pytest
 hypothesis = pytest.importorskip("hypothesis")
 from float32_support import any_real as _any_real  # noqa: E402
 from float32_support import f32, finite  # noqa: E402
-from hypothesis import example, given, settings  # noqa: E402
+from hypothesis import example, given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 from armbench.plant.arm import wrap180  # noqa: E402
 
@@ -346,7 +347,7 @@ def check_ik_answer(
     return residual
 
 
-@settings(max_examples=800)
+@examples(800)
 @given(case=ik_cases())
 @example(case=({"X": -150.0, "Y": -1.0e-30, "Z": 100.0, "GripperUpDown": 0.0, "Gripper": 0.0,
                 "ElbowRotate": 0.0, "GripperRotate": 0.0}, DEFAULT_GEO, True))
@@ -372,7 +373,7 @@ def test_inverse_kinematik_v1_and_check(
     figures.error("InverseKinematik_V1", residual, "mm (FK64 of answer - target)")
 
 
-@settings(max_examples=500)
+@examples(500)
 @given(case=ik_cases())
 def test_arm_kinematics_block(
     st_module: Any, figures: Any, case: tuple[dict[str, float], dict[str, float], bool]
@@ -406,7 +407,7 @@ def dh_robot() -> Any:
     return build
 
 
-@settings(max_examples=800)
+@examples(800)
 @given(case=ik_cases())
 def test_inverse_kinematik_dh_valid_means_on_target(
     st_module: Any, figures: Any, dh_robot: Any,

@@ -37,8 +37,9 @@ from armbench.plant import arm
 from five_axis_ref import fk5, tool_pitch
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 F32_MAX = float(np.finfo(np.float32).max)
 REAL_1E30 = float(np.float32(1.0e30))
@@ -73,7 +74,7 @@ def group_finite(group: dict[str, Any]) -> bool:
 
 # --- Scalar functions -----------------------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(v=st.lists(st.one_of(st.floats(width=32), st.sampled_from(EXTREMES)), min_size=3,
                   max_size=3))
 def test_motion_vec_length(st_module: Any, v: list[float]) -> None:
@@ -87,7 +88,7 @@ def test_motion_vec_length(st_module: Any, v: list[float]) -> None:
         assert math.isfinite(got) and abs(got - ref) <= 4e-7 * ref + 3e-45  # subnormal ulp
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(dist=real(-1e6, 1e6), lead=real(-1e6, 1e6), speed=real(0.0, 1e4))
 def test_motion_sync_speed(st_module: Any, dist: float, lead: float, speed: float) -> None:
     dist, lead, speed = f32(dist), f32(lead), f32(speed)
@@ -130,7 +131,7 @@ def quintic(dist: float, v0: float, dur: float, t: np.ndarray) -> tuple[np.ndarr
     return vel, acc, jerk
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(dist=st.floats(-1e3, 1e3, width=32), v0_frac=st.floats(-1.0, 1.5),
        dur=st.floats(f32(0.05), 20.0, width=32), vmax=st.floats(1.0, 500.0, width=32),
        amax=st.floats(1.0, 5000.0, width=32), jmax=st.floats(1.0, 1e5, width=32))
@@ -153,7 +154,7 @@ def test_motion_quintic_fits(st_module: Any, dist: float, v0_frac: float, dur: f
         pytest.fail(f"a quintic within {ratio:.3f} of its limits does not fit")
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(values=st.lists(real(-1e3, 1e3), min_size=6, max_size=6))
 def test_motion_quintic_fits_bad_input(st_module: Any, values: list[float]) -> None:
     dist, v0, dur, vmax, amax, jmax = (f32(v) for v in values)
@@ -169,7 +170,7 @@ def braking_sum(s: float, d: float) -> float:
     return (n + 1) * s - d * n * (n + 1) / 2.0
 
 
-@settings(max_examples=400)
+@examples(400)
 @given(rem=st.one_of(st.floats(0.0, 1e3), st.floats(0.0, 1e30), st.sampled_from(
            [0.0, 1e-45, 1e-30, 1e30, 1e38, F32_MAX])),
        acc=st.one_of(st.floats(1e-8, 10.0), st.sampled_from([1e-30, 1e-10, 1e3])))
@@ -222,14 +223,14 @@ def group_code(g: dict[str, Any], min_joints: int) -> int:
     return 0
 
 
-@settings(max_examples=150)
+@examples(150)
 @given(g=groups(), min_joints=st.sampled_from([1, 3, 5]))
 def test_motion_group_check(st_module: Any, g: dict[str, Any], min_joints: int) -> None:
     got = st_module.call("MotionGroupCheck", MinJoints=min_joints, Group=g)
     assert got == group_code(g, min_joints)
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(count=st.sampled_from([0, 1, 3, 6, 7, -2]),
        joints=st.lists(real(-200.0, 200.0), min_size=6, max_size=6),
        lower=st.lists(st.floats(-180.0, 0.0, width=32), min_size=6, max_size=6),
@@ -256,7 +257,7 @@ def ref_bresenham(deltas: list[int], k: int) -> list[int]:
     return [(2 * k * di + major) // (2 * major) for di in d]
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(deltas=st.lists(st.one_of(st.integers(-1_000_000, 1_000_000), st.sampled_from(
            [0, 1, -1, 1_000_000, -1_000_000])), min_size=3, max_size=3),
        chunks=st.lists(st.one_of(st.integers(-3, 50), st.integers(0, 300_000)), min_size=1,
@@ -293,7 +294,7 @@ points = st.tuples(st.floats(-350.0, 350.0), st.floats(-350.0, 350.0),
                    st.floats(-200.0, 450.0))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(p=st.one_of(points, st.lists(real(-1e6, 1e6), min_size=3, max_size=3).map(tuple)),
        elbow_up=st.booleans())
 def test_motion_arm_ik(st_module: Any, p: tuple[float, ...], elbow_up: bool) -> None:
@@ -316,7 +317,7 @@ def test_motion_arm_ik(st_module: Any, p: tuple[float, ...], elbow_up: bool) -> 
         assert np.abs(arm.forward(*ref) - arm.forward(*joints[:3])).max() < 5e-3
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(p0=points, p1=points, frac=st.one_of(st.floats(0.0, 1.0), st.sampled_from([0.0, 1.0])),
        jump=st.floats(0.5, 30.0), shift=st.floats(-40.0, 40.0),
        upper=st.sampled_from([170.0, 60.0]))
@@ -356,7 +357,7 @@ def test_motion_line_point_check(st_module: Any, p0: tuple[float, ...], p1: tupl
 
 # --- MotionHalt ------------------------------------------------------------------------------
 
-@settings(max_examples=80)
+@examples(80)
 @given(vel=st.lists(st.floats(-120.0, 120.0), min_size=3, max_size=3),
        decel=st.one_of(st.floats(50.0, 5000.0), st.sampled_from([400.0, 1e30])),
        later=st.lists(st.one_of(st.floats(1.0, 5000.0), st.sampled_from(
@@ -390,7 +391,7 @@ def test_motion_halt_brakes_within_the_limits(st_module: Any, vel: list[float], 
     assert np.abs(stop - want).max() <= np.abs(vel).max() * DT + 1e-3
 
 
-@settings(max_examples=100)
+@examples(100)
 @given(decel=real(-10.0, 10.0), cycle=real(-1.0, 1.0))
 def test_motion_halt_refuses_bad_parameters(st_module: Any, decel: float, cycle: float) -> None:
     decel, cycle = f32(decel), f32(cycle)
@@ -407,7 +408,7 @@ def test_motion_halt_refuses_bad_parameters(st_module: Any, decel: float, cycle:
 
 # --- MotionJog ---------------------------------------------------------------------------------
 
-@settings(max_examples=25)
+@examples(25)
 @given(commands=st.lists(st.tuples(*[st.one_of(st.floats(-2.0, 2.0), st.sampled_from(
            [1.0, -1.0, 0.0, math.nan, math.inf, 1e30]))] * 3), min_size=5, max_size=60),
        speed=st.floats(5.0, 200.0), acc=st.floats(50.0, 2000.0),
@@ -454,7 +455,7 @@ def test_motion_jog_scan_by_scan(st_module: Any, commands: list[tuple[float, ...
 
 # --- MotionLinear --------------------------------------------------------------------------------
 
-@settings(max_examples=15)
+@examples(15)
 @given(target=st.tuples(st.floats(120.0, 230.0), st.floats(-90.0, 90.0),
                         st.floats(60.0, 200.0)),
        velocity=st.floats(20.0, 400.0), acc=st.floats(100.0, 4000.0),
@@ -518,7 +519,7 @@ def test_motion_linear_scan_by_scan(st_module: Any, target: tuple[float, float, 
 Q0_5 = [15.0, 80.0, 100.0, -20.0, 10.0]
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(pitch=real(-360.0, 360.0), roll=real(-1e3, 1e3), tip_fixed=st.booleans(),
        check_speed=st.booleans())
 def test_motion_wrist_pose(st_module: Any, pitch: float, roll: float, tip_fixed: bool,
@@ -555,7 +556,7 @@ def test_motion_wrist_pose(st_module: Any, pitch: float, roll: float, tip_fixed:
         assert joints[4] == roll
 
 
-@settings(max_examples=20)
+@examples(20)
 @given(rates=st.lists(st.tuples(st.one_of(st.floats(-200.0, 200.0), st.sampled_from(
            [math.nan, math.inf, 0.0])), st.floats(-200.0, 200.0)), min_size=5, max_size=50),
        tip_fixed=st.booleans(), speed=st.floats(5.0, 100.0), acc=st.floats(50.0, 1000.0),

@@ -26,8 +26,9 @@ from scipy.spatial.transform import Rotation
 
 hypothesis = pytest.importorskip("hypothesis")
 ahrs_filters = pytest.importorskip("ahrs.filters")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 F32_MAX = float(np.finfo(np.float32).max)
 NEXT_1E6 = float(np.nextafter(np.float32(1.0e6), np.float32(2.0e6)))
@@ -102,7 +103,7 @@ rotations = unit_quats.map(rot)
 
 # --- Quaternion algebra ---------------------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(a=st.lists(real(-1e6, 1e6), min_size=4, max_size=4),
        b=st.lists(real(-1e6, 1e6), min_size=4, max_size=4))
 def test_quat_product_conjugate_norm_usable(st_module: Any, a: list[float],
@@ -135,7 +136,7 @@ def test_quat_product_conjugate_norm_usable(st_module: Any, a: list[float],
         assert np.abs(got - want).max() <= 1e-6 * scale + 1e-37
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(ra=rotations, rb=rotations)
 def test_quat_product_composes_rotations(st_module: Any, ra: Rotation, rb: Rotation) -> None:
     """A (x) B applies B first, then A: scipy's ra * rb."""
@@ -150,7 +151,7 @@ near_flip = st.tuples(st.sampled_from([0, 1, 2]), st.floats(-1e-3, 1e-3)).map(
     lambda t: Rotation.from_rotvec(np.eye(3)[t[0]] * (math.pi - abs(t[1]))))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(r=st.one_of(rotations, near_flip, st.just(Rotation.identity())))
 def test_quat_from_matrix_and_tool_direction(st_module: Any, r: Rotation) -> None:
     m = r.as_matrix().astype(np.float32).astype(float)
@@ -163,7 +164,7 @@ def test_quat_from_matrix_and_tool_direction(st_module: Any, r: Rotation) -> Non
     assert abs(np.linalg.norm(tool) - 1.0) < 2e-6
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(m=st.lists(st.lists(real(-2.0, 2.0), min_size=3, max_size=3), min_size=3, max_size=3))
 def test_quat_from_matrix_never_nan(st_module: Any, m: list[list[float]]) -> None:
     """Any matrix, a rotation or not, NaN/Inf included: a unit quaternion with W >= 0."""
@@ -175,7 +176,7 @@ pitch_near_lock = st.tuples(st.sampled_from([-90.0, 90.0]), st.floats(-0.2, 0.2)
     lambda t: t[0] - math.copysign(abs(t[1]), t[0]))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(yaw=st.floats(-180.0, 180.0), pitch=st.one_of(st.floats(-90.0, 90.0), pitch_near_lock),
        roll=st.floats(-180.0, 180.0))
 def test_roll_pitch_yaw_round_trip(st_module: Any, yaw: float, pitch: float,
@@ -199,7 +200,7 @@ def test_roll_pitch_yaw_round_trip(st_module: Any, yaw: float, pitch: float,
         assert r_out == 0.0  # inside the lock band roll is 0, yaw carries the turn
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(angles=st.lists(real(-1e6, 1e6), min_size=3, max_size=3))
 def test_quat_from_roll_pitch_yaw_any_angle(st_module: Any, angles: list[float]) -> None:
     """Any input, NaN/Inf and beyond the range included: never NaN, a unit quaternion; for
@@ -216,7 +217,7 @@ def test_quat_from_roll_pitch_yaw_any_angle(st_module: Any, angles: list[float])
 
 # --- Vectors ---------------------------------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(a=st.lists(real(-1e6, 1e6), min_size=3, max_size=3),
        b=st.lists(real(-1e6, 1e6), min_size=3, max_size=3), nonzero=st.booleans())
 def test_vector_helpers(st_module: Any, a: list[float], b: list[float], nonzero: bool) -> None:
@@ -239,7 +240,7 @@ def test_vector_helpers(st_module: Any, a: list[float], b: list[float], nonzero:
             assert triad is bool(ratio >= SIN_1DEG)
 
 
-@settings(max_examples=200)
+@examples(200)
 @given(a=unit_quats.map(lambda q: q[1:] / max(np.linalg.norm(q[1:]), 1e-9)),
        angle=st.one_of(st.floats(0.0, 3.0), st.floats(177.0, 180.0), st.floats(0.9, 1.1),
                        st.floats(178.9, 179.1)),
@@ -271,7 +272,7 @@ offset = st.one_of(st.floats(-1e3, 1e3, width=32), st.sampled_from(
     [1e3, -1e3, f32(1000.0001), math.nan, math.inf]))
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(raw=st.lists(raw_axis, min_size=6, max_size=6),
        mag=st.lists(mag_axis, min_size=3, max_size=3),
        lsbs=st.lists(lsb, min_size=3, max_size=3), scales=st.lists(scale, min_size=3,
@@ -366,7 +367,7 @@ def imu_samples(draw: Any, truth: Rotation | None = None) -> dict[str, Any]:
             "Mag": vec(mag.astype(np.float32)), "Code": code}
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(sample=imu_samples(), use_mag=st.booleans())
 def test_imu_sample_code(st_module: Any, sample: dict[str, Any], use_mag: bool) -> None:
     assert st_module.call("ImuSampleCode", sample, use_mag) == sample_code(sample, use_mag)
@@ -374,7 +375,7 @@ def test_imu_sample_code(st_module: Any, sample: dict[str, Any], use_mag: bool) 
 
 # --- Gyro step, TRIAD, tilt ------------------------------------------------------------------
 
-@settings(max_examples=300)
+@examples(300)
 @given(q=unit_quats, gyro=st.lists(real(-1e6, 1e6), min_size=3, max_size=3),
        dt=st.one_of(st.floats(f32(1e-4), 1.0, width=32), st.sampled_from(
            [1.0, f32(1.0000001), 0.0, -0.01, math.nan, math.inf, 1e-45])))
@@ -395,7 +396,7 @@ def test_quat_integrate_gyro(st_module: Any, q: np.ndarray, gyro: list[float],
     assert angle_deg(got, want.as_quat(scalar_first=True)) < tol
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(r=rotations, s_acc=st.sampled_from([1.0, 1e-5, 1e5, 0.3]),
        s_mag=st.sampled_from([1.0, 1e-5, 1e5, 0.5]),
        ref_mag=st.sampled_from([(1.0, 0.0, 0.0), (0.4, 0.0, -0.3), (0.2, 0.1, 0.9)]),
@@ -419,7 +420,7 @@ def test_quat_from_accel_mag_is_triad(st_module: Any, r: Rotation, s_acc: float,
     assert angle_deg(got, want) < 3e-4
 
 
-@settings(max_examples=300)
+@examples(300)
 @given(a=st.one_of(st.lists(real(-1e6, 1e6), min_size=3, max_size=3),
                    unit_quats.map(lambda q: list(q[1:])),
                    st.tuples(st.floats(-1e-3, 1e-3), st.floats(-1e-3, 1e-3)).map(
@@ -454,7 +455,7 @@ def period_ok(dt: float) -> bool:
     return 0.0 < dt <= 1.0
 
 
-@settings(max_examples=60)
+@examples(60)
 @given(q0=unit_quats, samples=st.lists(st.tuples(imu_samples(), periods), min_size=1,
                                        max_size=25),
        bad_init=st.booleans())
@@ -487,7 +488,7 @@ def test_gyro_integrator_sample_by_sample(st_module: Any, q0: np.ndarray,
         prev = out
 
 
-@settings(max_examples=60)
+@examples(60)
 @given(samples=st.lists(st.tuples(imu_samples(), periods), min_size=1, max_size=25),
        blend=st.one_of(st.floats(0.0, 1.0, width=32), st.sampled_from(
            [0.98, 0.0, 1.0, f32(1.0000001), -0.01, math.nan])))
@@ -551,7 +552,7 @@ betas = st.one_of(st.floats(0.0, 10.0, width=32), st.sampled_from(
 
 
 @pytest.mark.parametrize("kind", ["MadgwickImu", "MadgwickMarg"])
-@settings(max_examples=50)
+@examples(50)
 @given(q0=unit_quats, samples=st.lists(st.tuples(imu_samples(), periods), min_size=1,
                                        max_size=20),
        beta=betas, from_sensors=st.booleans())
@@ -618,7 +619,7 @@ def test_madgwick_sample_by_sample(st_module: Any, kind: str, q0: np.ndarray,
 
 # --- Follower settings ------------------------------------------------------------------------
 
-@settings(max_examples=400)
+@examples(400)
 @given(dead=real(0.0, 90.0), rate=real(0.0, 3600.0), acc=real(0.0, 1e6), cycle=real(0.0, 1.0))
 def test_tool_follower_settings_ok(st_module: Any, dead: float, rate: float, acc: float,
                                    cycle: float) -> None:

@@ -21,8 +21,9 @@ import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
 from float32_support import DEFAULT_CAL, any_real, f32, finite  # noqa: E402
-from hypothesis import example, given, settings  # noqa: E402
+from hypothesis import example, given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 NO_ERROR, NOT_FINITE, BAD_CALIBRATION, BAD_CHANNEL, BAD_FREQUENCY = 0, 3, 5, 6, 7
 PULSE_MIN_US, PULSE_MAX_US = 500.0, 2500.0
@@ -111,7 +112,7 @@ def reference_pulse(joint: float, c: dict[str, Any]) -> tuple[float, float, bool
     return c["MinPulseUs"] + (servo - c["MinAngleDeg"]) * slope, servo, clamped
 
 
-@settings(max_examples=800)
+@examples(800)
 @given(c=calibrations())
 @example(c={**DEFAULT_CAL, "Direction": 0})
 @example(c={**DEFAULT_CAL, "Direction": 2})
@@ -123,7 +124,7 @@ def test_servo_calibration_check_rules(st_module: Any, figures: Any, c: dict[str
     assert st_module.call("ServoCalibrationCheck", c) in calibration_codes(c), c
 
 
-@settings(max_examples=800)  # about one in four calibrations is accepted
+@examples(800)  # about one in four calibrations is accepted
 @given(c=calibrations(), joint=any_real(), step=st.floats(-10.0, 10.0, width=32))
 def test_angle_to_pulse_cannot_jump(
     st_module: Any, figures: Any, c: dict[str, Any], joint: float, step: float
@@ -152,7 +153,7 @@ def test_angle_to_pulse_cannot_jump(
     assert abs(nxt["PulseUs"] - got["PulseUs"]) <= SCALE_MAX * abs(f32(joint + step) - joint) + 4e-3
 
 
-@settings(max_examples=800)
+@examples(800)
 @given(c=calibrations(), pulse=st.one_of(st.floats(300.0, 2700.0, width=32), any_real()))
 def test_pulse_to_angle_vs_reference(
     st_module: Any, figures: Any, c: dict[str, Any], pulse: float

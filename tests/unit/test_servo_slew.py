@@ -21,8 +21,9 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from hypothesis_setup import examples  # noqa: E402
 
 NOT_FINITE, BAD_PARAMETER = 3, 8
 VMAX_DEFAULT, AMAX_DEFAULT = 150.0, 1000.0  # the header's MG996R derivation
@@ -145,7 +146,7 @@ def _pattern(kind: str, n: int, rnd: np.random.Generator) -> list[tuple[float, f
     return [tuple(float(v) for v in rnd.uniform(-500, 500, 3)) for _ in range(n)]  # jumps
 
 
-@settings(max_examples=150)
+@examples(150)
 @given(seq=commands(), tail=st.floats(-300.0, 300.0))
 def test_hostile_sequences_never_exceed_limits(st_module: Any, seq: list[tuple[float, ...]],
                                                tail: float) -> None:
@@ -180,7 +181,7 @@ def test_patterns_never_exceed_limits(st_module: Any, kind: str) -> None:
     assert worst <= VMAX_DEFAULT * DT * (1 + 1e-6) + 1e-4
 
 
-@settings(max_examples=80)
+@examples(80)
 @given(plan=st.lists(st.tuples(st.floats(-400.0, 400.0), st.floats(20.0, 400.0),
                                st.floats(50.0, 5000.0), st.integers(1, 40)),
                      min_size=1, max_size=8))
