@@ -15,7 +15,7 @@ import pytest
 from motion_support import DT, GroupSim, make_group
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given  # noqa: E402
+from hypothesis import example, given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from hypothesis_setup import examples  # noqa: E402
 
@@ -28,6 +28,8 @@ joints3 = st.lists(angle, min_size=3, max_size=3)
 @given(start=joints3, first=joints3, second=joints3, p1=st.integers(0, 3),
        p2=st.integers(0, 3), v1=st.floats(5.0, 200.0), v2=st.floats(5.0, 200.0),
        a1=st.floats(20.0, 1000.0), a2=st.floats(20.0, 1000.0), k=st.integers(1, 80))
+@example(start=[0.0, 0.0, 0.0], first=[0.0, 0.0, 0.0], second=[0.0, 0.0, 145.0], p1=0, p2=3,
+         v1=5.0, v2=5.0, a1=20.0, a2=20.0, k=1)
 def test_takeover_never_jumps(st_module: Any, start: list[float], first: list[float],
                               second: list[float], p1: int, p2: int, v1: float, v2: float,
                               a1: float, a2: float, k: int) -> None:
@@ -41,7 +43,10 @@ def test_takeover_never_jumps(st_module: Any, start: list[float], first: list[fl
     for _ in range(k):
         sim.scan(a, **first_in)
     was_busy = a.Busy
-    for n in range(1, 5001):
+    # the longest move drawn: a quintic's peak speed is 1.875 D / T, so 300 deg at 5 deg/s
+    # takes 112.5 s = 11,250 scans, plus up to 4.5 s braking the first move (90 deg/s at
+    # 20 deg/s^2); the soak's case below, 145 deg, needs 5,438
+    for n in range(1, 16001):
         sim.scan(b, **second_in)
         if n == 1:
             sim.call(a, **first_in)
