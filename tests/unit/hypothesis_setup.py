@@ -62,8 +62,8 @@ def examples(n: int) -> settings:
     """
     if n < 1:
         raise ValueError(f"examples({n}): a property test needs at least one example")
-    return settings(max_examples=max(1, n * settings.default.max_examples
-                                     // PROFILES["armbench"]))
+    loaded = settings().max_examples  # a new settings object takes the loaded profile's
+    return settings(max_examples=max(1, n * loaded // PROFILES["armbench"]))
 
 
 def use_seed_option(config: pytest.Config) -> None:
