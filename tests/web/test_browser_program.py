@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page
+from playwright.sync_api import Browser, Page, Route
 from webview_helpers import COUNTER, get, serve_program, wait_for
 
 from armbench.web.app import WebView
@@ -119,3 +119,31 @@ def test_trace_select_plot_pause_and_download_csv(page: Page, counter_view: WebV
     page.click("#trace-pause")
     page.wait_for_function("n => window.armbench.trace.rows.length > n + 50", arg=held)
     assert page.evaluate("window.armbench.trace.gaps") == 0
+
+
+def test_two_boxes_ticked_before_the_first_answer_both_count(page: Page) -> None:
+    """The trace's selection is what the user ticked, however slow the server answers: the
+    second box ticked while the first box's request is still out must not drop the first."""
+    held: list[Route] = []
+
+    def hold(route: Route) -> None:
+        if route.request.method == "POST":
+            held.append(route)
+        else:
+            route.continue_()
+
+    page.click("#views button[data-view=trace]")
+    page.route("**/api/trace", hold)
+    for name in ("Scans", "Wave"):
+        page.check(f"#trace-vars input[value={name}]")
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline:
+        while held:
+            held.pop(0).continue_()
+        if page.evaluate("window.armbench.trace.names.length") == 2:
+            break
+        page.wait_for_timeout(50)
+    page.unroute("**/api/trace")
+    page.wait_for_timeout(300)  # a late answer would land here
+    assert page.evaluate("window.armbench.trace.names") == ["Scans", "Wave"]
+    assert page.is_checked("#trace-vars input[value=Scans]")

@@ -17,6 +17,11 @@ window.armbenchTrace = function (info) {
   const pctx = plot.getContext("2d");
   let variables = [];   // every located variable: {name, location, type, table}
   let dirty = true;
+  // The selection the user has asked for so far: two boxes ticked before the first answer
+  // arrives both count, and the requests go one after another so the last one wins.
+  let want = null;
+  let pending = 0;
+  let sending = Promise.resolve();
 
   $("trace-max").textContent = 16;
   $("trace-period").textContent = fmt(info.trace.min_period_ms, 3);
@@ -27,21 +32,31 @@ window.armbenchTrace = function (info) {
     const shown = variables.filter((v) => !q || [v.name, v.location, v.type].some((x) => x.toLowerCase().includes(q)));
     $("trace-vars").innerHTML = shown.slice(0, 1000).map((v) => {
       const i = T.names.indexOf(v.name);
+      const on = (want ?? T.names).includes(v.name);
       const sw = i >= 0 ? `<span class="swatch" style="background:${COLORS[i % COLORS.length]}"></span>` : "";
-      return `<label><input type="checkbox" value="${esc(v.name)}"${i >= 0 ? " checked" : ""}> ${sw}${esc(v.name)} ` +
+      return `<label><input type="checkbox" value="${esc(v.name)}"${on ? " checked" : ""}> ${sw}${esc(v.name)} ` +
         `<small>${esc(v.location)} ${esc(v.type)}</small></label>`;
     }).join("");
   }
   $("trace-filter").addEventListener("input", renderChoices);
-  $("trace-vars").addEventListener("change", async (e) => {
+  $("trace-vars").addEventListener("change", (e) => {
     const name = e.target.value;
-    const names = e.target.checked ? T.names.concat([name]) : T.names.filter((n) => n !== name);
-    const r = await fetch("/api/trace", { method: "POST", headers: { "Content-Type": "application/json" },
-                                          body: JSON.stringify({ variables: names }) });
-    const a = await r.json();
-    if (!a.ok) { T.error = a.message; e.target.checked = !e.target.checked; stats(); return; }
-    T.error = null;
-    adopt(a);
+    const base = want ?? T.names;
+    want = e.target.checked ? base.filter((n) => n !== name).concat([name])
+                            : base.filter((n) => n !== name);
+    const names = want.slice();
+    pending += 1;
+    sending = sending.then(async () => {
+      try {
+        const r = await fetch("/api/trace", { method: "POST", headers: { "Content-Type": "application/json" },
+                                              body: JSON.stringify({ variables: names }) });
+        const a = await r.json();
+        if (!a.ok) { T.error = a.message; want = null; renderChoices(); stats(); return; }
+        T.error = null;
+        adopt(a);
+      } catch (err) { want = null; renderChoices(); }
+      finally { pending -= 1; if (pending === 0) want = null; }
+    });
   });
 
   function adopt(a) {
