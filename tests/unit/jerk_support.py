@@ -271,15 +271,16 @@ def ruckig_plan(axes: tuple[AxisCase, ...] | list[AxisCase], synchronization: st
 
 @dataclass(frozen=True)
 class Extremes:
-    """What a profile reaches, integrated here in float64 from its start."""
+    """What a profile puts out, recomputed here in float64."""
 
-    end: tuple[float, float, float]        # p, v, a at the end
+    end: tuple[float, float, float]        # p, v, a at the end (its last knot)
     v_hi: float                            # largest velocity after the brake
     v_lo: float                            # smallest velocity after the brake
     a_hi: float
     a_lo: float
     j_abs: float                           # largest |jerk|
     duration: float
+    jump: tuple[float, float, float]       # largest |p|, |v|, |a| step at a knot
 
 
 def _phase(p: float, v: float, a: float, j: float, t: float) -> tuple[float, float, float]:
@@ -287,9 +288,14 @@ def _phase(p: float, v: float, a: float, j: float, t: float) -> tuple[float, flo
 
 
 def extremes(prof: dict[str, Any], p0: float, v0: float, a0: float) -> Extremes:
-    """Integrate `prof` (an ST MotionJerkProfile) from (p0, v0, a0): brake phases, then the
-    seven phases; the limits part covers the seven phases (the brake exists to bring a start
-    outside the limits back inside)."""
+    """`prof` (an ST MotionJerkProfile) recomputed from the start (p0, v0, a0): the brake
+    phases integrated from the start, then each of the seven phases integrated from its
+    start knot (what MotionJerkAt and Ruckig's at_time evaluate; the knots of a limit that
+    a case reaches are set exactly, e.g. a zero acceleration for the cruise), its end
+    compared with the next knot (``jump``: the trajectory's steps, rounding only), its
+    velocity and acceleration extrema taken exactly (the acceleration is linear in a phase,
+    the velocity's extremum is where the acceleration crosses zero). The limits part covers
+    the seven phases (the brake exists to bring a start outside the limits back inside)."""
     p, v, a = p0, v0, a0
     j_abs = 0.0
     duration = 0.0
@@ -301,6 +307,8 @@ def extremes(prof: dict[str, Any], p0: float, v0: float, a0: float) -> Extremes:
             j_abs = max(j_abs, abs(prof["BrakeJ"][k]))
             p, v, a = _phase(p, v, a, prof["BrakeJ"][k], t)
             duration += t
+    jump = [abs(p - prof["P"][0]), abs(v - prof["V"][0]), abs(a - prof["A"][0])]
+    p, v, a = prof["P"][0], prof["V"][0], prof["A"][0]
     v_hi = v_lo = v
     a_hi = a_lo = a
     for k in range(7):
@@ -314,9 +322,28 @@ def extremes(prof: dict[str, Any], p0: float, v0: float, a0: float) -> Extremes:
             if 0.0 < tz < t:
                 vz = _phase(p, v, a, j, tz)[1]
                 v_hi, v_lo = max(v_hi, vz), min(v_lo, vz)
-        p, v, a = p1, v1, a1
+        p, v, a = prof["P"][k + 1], prof["V"][k + 1], prof["A"][k + 1]
+        jump = [max(jump[0], abs(p1 - p)), max(jump[1], abs(v1 - v)),
+                max(jump[2], abs(a1 - a))]
+        v_hi, v_lo = max(v_hi, v), min(v_lo, v)
+        a_hi, a_lo = max(a_hi, a), min(a_lo, a)
         duration += t
-    return Extremes((p, v, a), v_hi, v_lo, a_hi, a_lo, j_abs, duration)
+    return Extremes((p, v, a), v_hi, v_lo, a_hi, a_lo, j_abs, duration,
+                    (jump[0], jump[1], jump[2]))
+
+
+def jump_problems(case: AxisCase, ex: Extremes, duration: float) -> list[str]:
+    """Steps at the knots beyond rounding: 1e-9 of the move's scale in position, of the
+    limits in velocity and acceleration."""
+    out = []
+    span = max(abs(case.p0), abs(case.pf), abs(case.v0) * duration, case.vmax * duration, 1.0)
+    if ex.jump[0] > 1e-9 * span:
+        out.append(f"position steps by {ex.jump[0]!r} at a knot")
+    if ex.jump[1] > 1e-9 * max(case.vmax, abs(case.v_lo), abs(case.v0), 1.0):
+        out.append(f"velocity steps by {ex.jump[1]!r} at a knot")
+    if ex.jump[2] > 1e-9 * max(case.amax, abs(case.a_lo), abs(case.a0), 1.0):
+        out.append(f"acceleration steps by {ex.jump[2]!r} at a knot")
+    return out
 
 
 def pos_tolerance(case: AxisCase, duration: float) -> float:
@@ -433,6 +460,8 @@ class CaseCheck:
     rel_duration_error: float = 0.0
     pos_error: float = 0.0          # largest |position - Ruckig's| along the trajectory
     pos_error_rel_tol: float = 0.0  # the same over its float32 tolerance (<= 1 passes)
+    limit_ratio: float = 0.0        # largest |velocity|, |acceleration| or |jerk| reached
+    #                                 over its limit (after a brake; <= 1 within the limits)
     problems: list[str] = field(default_factory=list)
     agreed_error: bool = False      # both refused the input, with corresponding codes
 
@@ -476,6 +505,13 @@ def check_plan(runner: StRunner, axes: tuple[AxisCase, ...], synchronization: st
             if not all(math.isfinite(x) for x in (p, v, a)):
                 out.problems.append(f"axis {k + 1} at {t}: not finite")
                 continue
+            if interface == "Position" and inside_at_start(case):
+                # the ST's own evaluation, sampled: inside the limits too
+                if not (case.v_lo * (1 + 1e-9) - 1e-12 <= v <= case.vmax * (1 + 1e-9) + 1e-12
+                        and case.a_lo * (1 + 1e-9) - 1e-12 <= a
+                        <= case.amax * (1 + 1e-9) + 1e-12):
+                    out.problems.append(f"axis {k + 1} at t = {t!r}: v {v!r}, a {a!r} beyond "
+                                        "the limits")
             err = abs(p - p_ref[k])
             tol = pos_tolerance(case, ref.duration)
             out.pos_error = max(out.pos_error, err)
@@ -493,6 +529,7 @@ def check_plan(runner: StRunner, axes: tuple[AxisCase, ...], synchronization: st
             synchronization == "TimeIfNecessary" and (case.vf != 0.0 or case.af != 0.0))
         if synced and abs(own - got.duration) > 1e-9 * max(got.duration, 1.0):
             out.problems.append(f"axis {k + 1}: lasts {own!r}, not the common {got.duration!r}")
+        out.problems += [f"axis {k + 1}: {p}" for p in jump_problems(case, ex, own)]
         scale = max(abs(case.p0), abs(case.pf), 1.0)
         if interface == "Position" and abs(ex.end[0] - case.pf) > 1e-7 * scale:
             out.problems.append(f"axis {k + 1}: ends at {ex.end[0]!r}, target {case.pf!r}")
@@ -503,10 +540,16 @@ def check_plan(runner: StRunner, axes: tuple[AxisCase, ...], synchronization: st
             out.problems.append(f"axis {k + 1}: ends at acceleration {ex.end[2]!r}")
         if interface == "Position" and inside_at_start(case):
             out.problems += [f"axis {k + 1}: {p}" for p in limit_violations(case, ex)]
+            out.limit_ratio = max(out.limit_ratio, ex.v_hi / case.vmax, ex.a_hi / case.amax,
+                                  ex.j_abs / case.jmax,
+                                  ex.v_lo / case.v_lo if case.v_lo < 0.0 else 0.0,
+                                  ex.a_lo / case.a_lo)
         elif interface == "Velocity" and case.a_lo <= case.a0 <= case.amax:
             out.problems += [f"axis {k + 1}: {p}" for p in limit_violations(
                 AxisCase(case.p0, case.v0, case.a0, case.pf, case.vf, math.inf, case.amax,
                          case.jmax, -math.inf, case.amin), ex)]
+            out.limit_ratio = max(out.limit_ratio, ex.a_hi / case.amax, ex.a_lo / case.a_lo,
+                                  ex.j_abs / case.jmax)
     return out
 
 

@@ -25,6 +25,7 @@ from jerk_support import (
     StRunner,
     extremes,
     inside_at_start,
+    jump_problems,
     limit_violations,
     ruckig_plan,
 )
@@ -113,9 +114,10 @@ def directions(case: AxisCase) -> list[dict[str, float]]:
 
 def assert_reaches(prof: dict[str, Any], case: AxisCase, duration: float | None = None,
                    position: bool = True) -> None:
-    """Integrated from the case's start: ends at the target (and after `duration`), within
-    the limits when the start is inside them."""
+    """Recomputed from the case's start (jerk_support.extremes): continuous, ends at the
+    target (and after `duration`), within the limits when the start is inside them."""
     ex = extremes(prof, case.p0, case.v0, case.a0)
+    assert not jump_problems(case, ex, ex.duration)
     scale = max(abs(case.p0), abs(case.pf), 1.0)
     if position:
         assert ex.end[0] == pytest.approx(case.pf, abs=1e-7 * scale)
