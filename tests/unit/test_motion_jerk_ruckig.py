@@ -38,7 +38,7 @@ from jerk_support import (
 
 ruckig = pytest.importorskip("ruckig")
 
-PER_FAMILY = 40  # CI's sample per family; the bench runs 10,000 per interface
+PER_FAMILY = 100  # CI's sample per family; the bench runs 10,000 per interface
 
 
 @pytest.fixture(scope="module")
