@@ -389,9 +389,10 @@ def test_export_orders_sources_types_first(tmp_path: Path) -> None:
     given = list(reversed(default_sources()))  # Controller first, ArmAngles last
     exp = generate(given)
     names = [s.name for s in exp.sources]
-    # files holding only TYPE declarations go first (ArmAngles.st, ControllerErrors.st)
+    # files holding only TYPE declarations go first (ArmAngles.st, ControllerErrors.st, ...)
     assert not exp.sources[0].unit.pous and not exp.sources[1].unit.pous
-    assert names.index("st/ArmAngles.st") < 2
+    first_pou = next(i for i, s in enumerate(exp.sources) if s.unit.pous)
+    assert names.index("st/ArmAngles.st") < first_pou
     assert names.index("st/MG996R.st") < names.index("plc_project/Controller.st")
     assert names.index("st/PCA9685.st") < names.index("plc_project/Controller.st")
     assert names.index("st/Kinematics.st") < names.index("plc_project/Controller.st")
