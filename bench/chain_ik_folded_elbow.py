@@ -19,7 +19,6 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import roboticstoolbox as rtb
@@ -27,6 +26,10 @@ import roboticstoolbox as rtb
 from armbench.compiler import compile_files
 
 ROOT = Path(__file__).parent.parent
+# the pose set and the chain of the unit tests, so that bench and test draw the same targets
+sys.path.insert(0, str(ROOT / "tests" / "unit"))
+from chain_models import MM_PER_M, chain_of, puma_folded_elbow_set  # noqa: E402
+
 POSES_PER_SET = 120
 SPREADS = (0.5, 1.0, math.pi)
 CAPS = (100, 200)
@@ -41,27 +44,6 @@ class Tally:
     iterations: list[int] = field(default_factory=list)
 
 
-def folded_set(robot: Any, n: int, spread: float, seed: int
-               ) -> list[tuple[np.ndarray, np.ndarray]]:
-    a3, d4 = float(robot.links[2].a), float(robot.links[3].d)
-    folded = math.atan2(d4, -a3)
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        qt = rng.uniform(robot.qlim[0], robot.qlim[1])
-        qt[2] = folded + 10.0 ** rng.uniform(-4.0, -1.3) * rng.choice([-1.0, 1.0])
-        out.append((qt, qt + rng.uniform(-spread, spread, robot.n)))
-    return out
-
-
-def chain_dict(robot: Any) -> dict[str, Any]:
-    links = [{"A": float(lk.a) * 1000.0, "AlphaDeg": math.degrees(lk.alpha),
-              "D": float(lk.d) * 1000.0, "ThetaOffsetDeg": math.degrees(lk.offset),
-              "Prismatic": False, "LowerLimit": 0.0, "UpperLimit": 0.0} for lk in robot.links]
-    return {"Links": links, "Count": robot.n, "Modified": False,
-            "ToolX": 0.0, "ToolY": 0.0, "ToolZ": 0.0}
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--first-seed", type=int, default=200, help="first generator seed")
@@ -71,14 +53,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--sets must be >= 1")
     ik = compile_files(sorted((ROOT / "st").glob("*.st"))).new_fb("InverseKinematik_Chain")
     robot = rtb.models.DH.Puma560()
-    chain = chain_dict(robot)
+    chain = chain_of(robot, MM_PER_M)
     seeds = range(args.first_seed, args.first_seed + args.sets)
     print(f"Puma 560 folded elbow, generator seeds {seeds.start}..{seeds.stop - 1}, "
           f"{POSES_PER_SET} poses each; ikine_LM: 100 iterations")
     for spread in SPREADS:
         tallies = {cap: Tally() for cap in CAPS}
         for seed in seeds:
-            for qt, q0 in folded_set(robot, POSES_PER_SET, spread, seed):
+            for qt, q0 in puma_folded_elbow_set(robot, POSES_PER_SET, spread, seed):
                 Tep = robot.fkine(qt).A
                 sol = robot.ikine_LM(Tep, q0=q0, ilimit=100, slimit=1, tol=RTB_TOL,
                                      joint_limits=False)

@@ -115,57 +115,40 @@ def axis_row(c: js.AxisCase) -> list[float]:
                                c.v_lo, c.a_lo, sep)]
 
 
+def planner_harness(rows: list[list[float]], joints: int, count: int) -> str:
+    """The C main timing MotionJerkPlanner on ``count`` cases of ``joints`` axes (``rows``:
+    one axis_row per axis, the cases one after another)."""
+    return "\n".join([
+        HARNESS_HEAD, table("CASES", rows),
+        "int main(void) {",
+        "    paint_stack();",
+        "    FB_MOTIONJERKPLANNER_init(&fb);",
+        f"    fb.JOINTS = {joints}; fb.SYNC = 0; fb.VELOCITYMODE = 0;",
+        f"    for (int32_t i = 0; i < {count}; i++) {{",
+        f"        for (int k = 0; k < {joints}; k++) load(CASES[{joints} * i + k], k);",
+        "        bench_mark_begin(i);",
+        "#ifdef BENCH_EMPTY",
+        f"        bench_sink_d = CASES[{joints} * i][0];",
+        "        bench_mark_end(i);",
+        "#else",
+        "        int rc = FB_MOTIONJERKPLANNER_run(&fb);",
+        "        bench_mark_end(i);",
+        '        bench_puts("R "); bench_put_dec(i); bench_puts(" "); bench_put_dec(rc);',
+        '        bench_puts(" "); bench_put_dec(fb.ERRORID); put_d(fb.DURATION);',
+        '        bench_puts("\\n");',
+        "#endif",
+        "    }",
+        "    put_stack();",
+        "    return 0;",
+        "}", ""])
+
+
 def harness(kernel: str, one: list[js.AxisCase], six: list[tuple[js.AxisCase, ...]],
             scans: int) -> str:
     if kernel == "plan 1 axis":
-        return "\n".join([
-            HARNESS_HEAD, table("CASES", [axis_row(c) for c in one]),
-            "int main(void) {",
-            "    paint_stack();",
-            "    FB_MOTIONJERKPLANNER_init(&fb);",
-            "    fb.JOINTS = 1; fb.SYNC = 0; fb.VELOCITYMODE = 0;",
-            f"    for (int32_t i = 0; i < {len(one)}; i++) {{",
-            "        load(CASES[i], 0);",
-            "        bench_mark_begin(i);",
-            "#ifdef BENCH_EMPTY",
-            "        bench_sink_d = CASES[i][0];",
-            "        bench_mark_end(i);",
-            "#else",
-            "        int rc = FB_MOTIONJERKPLANNER_run(&fb);",
-            "        bench_mark_end(i);",
-            '        bench_puts("R "); bench_put_dec(i); bench_puts(" "); bench_put_dec(rc);',
-            '        bench_puts(" "); bench_put_dec(fb.ERRORID); put_d(fb.DURATION);',
-            '        bench_puts("\\n");',
-            "#endif",
-            "    }",
-            "    put_stack();",
-            "    return 0;",
-            "}", ""])
+        return planner_harness([axis_row(c) for c in one], 1, len(one))
     if kernel == "plan 6 axes":
-        rows = [axis_row(c) for axes in six for c in axes]
-        return "\n".join([
-            HARNESS_HEAD, table("CASES", rows),
-            "int main(void) {",
-            "    paint_stack();",
-            "    FB_MOTIONJERKPLANNER_init(&fb);",
-            "    fb.JOINTS = 6; fb.SYNC = 0; fb.VELOCITYMODE = 0;",
-            f"    for (int32_t i = 0; i < {len(six)}; i++) {{",
-            "        for (int k = 0; k < 6; k++) load(CASES[6 * i + k], k);",
-            "        bench_mark_begin(i);",
-            "#ifdef BENCH_EMPTY",
-            "        bench_sink_d = CASES[6 * i][0];",
-            "        bench_mark_end(i);",
-            "#else",
-            "        int rc = FB_MOTIONJERKPLANNER_run(&fb);",
-            "        bench_mark_end(i);",
-            '        bench_puts("R "); bench_put_dec(i); bench_puts(" "); bench_put_dec(rc);',
-            '        bench_puts(" "); bench_put_dec(fb.ERRORID); put_d(fb.DURATION);',
-            '        bench_puts("\\n");',
-            "#endif",
-            "    }",
-            "    put_stack();",
-            "    return 0;",
-            "}", ""])
+        return planner_harness([axis_row(c) for axes in six for c in axes], 6, len(six))
     replan = kernel == "generator scan, re-plan"
     targets = [[5.0 * k + 40.0 * math.sin(0.013 * s + k) for k in range(6)]
                for s in range(scans)]

@@ -34,7 +34,7 @@ from .locate import (
     NotACheckout,
     default_project,
     find_checkout,
-    with_library,
+    select_library,
 )
 
 if TYPE_CHECKING:  # the soft PLC is imported when a command needs it
@@ -77,10 +77,7 @@ def _library_files() -> list[Path]:
 
 def _select(args: argparse.Namespace) -> LibrarySelection:
     """The given files, and the library files they do not replace (none with --no-library)."""
-    given = _given(args.files)
-    if args.no_library:
-        return LibrarySelection(given)
-    return with_library(given, _library_files())
+    return select_library(_given(args.files), not args.no_library)
 
 
 def _analyse(args: argparse.Namespace) -> tuple[LibrarySelection, Analysis]:

@@ -133,6 +133,16 @@ class LibrarySelection:
     library: list[Path] = field(default_factory=list)
 
 
+def select_library(given: Sequence[Path], library: bool = True) -> LibrarySelection:
+    """What ``armbench check/run/serve/export`` and the pytest plugin compile ``given`` with:
+    the armbench ST library and the controller's blocks (plc_project/controller/*.st), taken by
+    use, less the files ``given`` replaces; nothing when ``library`` is False."""
+    if not library:
+        return LibrarySelection(list(given))
+    project = default_project()
+    return with_library(given, [*project.library(), *project.components()])
+
+
 def with_library(given: Sequence[Path], library: Sequence[Path]) -> LibrarySelection:
     """``given`` and the library files they do not replace: a library file is left out when a
     given file is the same file or has the same name (the user's own modified copy)."""

@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 
 from armbench.compiler import ast as A
+from armbench.compiler.ast import walk
 from armbench.compiler.driver import analyse_program
 from armbench.export import OPENPLC_FILE, generate
-from armbench.export.sources import _walk
 from armbench.locate import default_project
 
 REPO = Path(__file__).resolve().parents[2]
@@ -95,7 +95,7 @@ def located(files: list[Path], library: list[Path]) -> list[tuple[str, str, str]
     analysis = analyse_program(files, library)
     assert analysis.program is not None
     return sorted((d.name, d.address or "", d.type.name)
-                  for unit in analysis.program.units for d in _walk(unit)
+                  for unit in analysis.program.units for d in walk(unit)
                   if isinstance(d, A.VarDecl) and d.address is not None
                   and isinstance(d.type, A.NamedTypeRef))
 

@@ -6,6 +6,8 @@ Resolved types live beside the AST (keyed by node id) in the resolver, not here.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from .source import SourcePos
@@ -284,3 +286,18 @@ class SourceUnit(Node):
     pous: list[Pou] = field(default_factory=list)
     configs: list[Configuration] = field(default_factory=list)
     stray_globals: list[VarBlock] = field(default_factory=list)  # VAR_GLOBAL at top level
+
+
+def walk(obj: object) -> Iterator[object]:
+    """Every AST node and plain value below obj (dataclass fields, lists, tuples, dicts), with
+    a stack, never recursion: a deeply nested file cannot exhaust Python's stack."""
+    stack: list[object] = [obj]
+    while stack:
+        cur = stack.pop()
+        yield cur
+        if isinstance(cur, Node):
+            stack.extend(getattr(cur, f.name) for f in dataclasses.fields(cur))
+        elif isinstance(cur, list | tuple):
+            stack.extend(cur)
+        elif isinstance(cur, dict):
+            stack.extend(cur.values())

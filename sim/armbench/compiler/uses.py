@@ -16,9 +16,8 @@ per run.
 
 from __future__ import annotations
 
-import dataclasses
 from collections import deque
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -50,26 +49,12 @@ class Declaration:
         return f"{self.kind} {self.name}"
 
 
-def _walk(obj: object) -> Iterator[object]:
-    """Every AST node and plain value below obj, with a stack (never recursion)."""
-    stack: list[object] = [obj]
-    while stack:
-        cur = stack.pop()
-        yield cur
-        if isinstance(cur, A.Node):
-            stack.extend(getattr(cur, f.name) for f in dataclasses.fields(cur))
-        elif isinstance(cur, list | tuple):
-            stack.extend(cur)
-        elif isinstance(cur, dict):
-            stack.extend(cur.values())
-
-
 def _references(node: object, local: frozenset[str]) -> frozenset[str]:
     """Upper-cased names below ``node`` that may name a global declaration: types, POUs,
     enumeration values. Names of ``local`` variables are not global references; their types
     are."""
     out: set[str] = set()
-    for n in _walk(node):
+    for n in A.walk(node):
         if isinstance(n, A.Name):
             key = n.name.upper()
             if key not in local:

@@ -35,7 +35,6 @@ from dataclasses import dataclass
 
 from ..compiler import ast as A
 from ..compiler.symbols import CheckedProgram
-from .sources import _walk
 
 _ADDRESS = re.compile(r"^%([IQM])([XBWDL])(\d+)(?:\.(\d+))?$", re.IGNORECASE)
 SIZE_BYTES = {"X": 1, "B": 1, "W": 2, "D": 4, "L": 8}
@@ -109,7 +108,7 @@ class Placed:
 
 def _assigned_names(pou: A.Pou) -> set[str]:
     names: set[str] = set()
-    for node in _walk(pou.body):
+    for node in A.walk(pou.body):
         if isinstance(node, A.Assign) and isinstance(node.target, A.Name):
             names.add(node.target.name.upper())
         elif isinstance(node, A.Arg) and node.is_output and isinstance(node.value, A.Name):

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 from ..compiler import ast as A
 from ..compiler.symbols import CheckedProgram
-from .sources import Source, _walk
+from .sources import Source
 from .sttext import SourceText, declaration_span, monitor_friendly
 
 RULE = "=" * 76
@@ -57,7 +57,7 @@ def upload_text(src: Source) -> str:
     Monitoring page (:func:`.sttext.monitor_friendly`)."""
     st = SourceText(src.text)
     if not src.library:
-        return monitor_friendly(st, [n for n in _walk(src.unit)
+        return monitor_friendly(st, [n for n in A.walk(src.unit)
                                      if isinstance(n, A.VarDecl) and n.address is not None])
     parts: list[str] = []
     if src.unit.types:

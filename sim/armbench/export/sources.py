@@ -11,8 +11,7 @@ whole program) keeps the given order for the files in the cycle.
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,20 +44,6 @@ class Source:
     library: bool = False
 
 
-def _walk(obj: object) -> Iterator[object]:
-    """Every AST node and plain value below obj (dataclass fields, lists, tuples, dicts)."""
-    stack: list[object] = [obj]
-    while stack:
-        cur = stack.pop()
-        yield cur
-        if isinstance(cur, A.Node):
-            stack.extend(getattr(cur, f.name) for f in dataclasses.fields(cur))
-        elif isinstance(cur, list | tuple):
-            stack.extend(cur)
-        elif isinstance(cur, dict):
-            stack.extend(cur.values())
-
-
 def declared_names(unit: A.SourceUnit) -> set[str]:
     names = {t.name.upper() for t in unit.types} | {p.name.upper() for p in unit.pous}
     for t in unit.types:
@@ -69,7 +54,7 @@ def declared_names(unit: A.SourceUnit) -> set[str]:
 
 def used_names(unit: A.SourceUnit) -> set[str]:
     used: set[str] = set()
-    for node in _walk(unit):
+    for node in A.walk(unit):
         if isinstance(node, A.NamedTypeRef | A.Name):
             used.add(node.name.upper())
         elif isinstance(node, A.Literal) and node.type_prefix:

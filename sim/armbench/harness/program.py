@@ -248,16 +248,11 @@ def _analysed(given: Sequence[Path], library: bool
     files it was compiled from, and the library's note. Raises CompileFailed."""
     from ..compiler.diagnostics import CompileFailed
     from ..compiler.driver import analyse_program
-    from ..locate import default_project, with_library
+    from ..locate import select_library
 
-    if not library:
-        analysis = analyse_program(given)
-        files: tuple[Path, ...] = tuple(given)
-    else:
-        project = default_project()
-        selection = with_library(list(given), [*project.library(), *project.components()])
-        analysis = analyse_program(selection.given, selection.library)
-        files = (*selection.given, *map(Path, analysis.library.files))
+    selection = select_library(given, library)
+    analysis = analyse_program(selection.given, selection.library)
+    files = (*selection.given, *map(Path, analysis.library.files))
     if analysis.program is None:
         raise CompileFailed(analysis.diagnostics.sorted())
     note = analysis.library.note()
