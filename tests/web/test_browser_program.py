@@ -45,7 +45,9 @@ def page(browser: Browser, counter_view: WebView) -> Iterator[Page]:
     errors: list[str] = []
     pg.on("pageerror", lambda e: errors.append(str(e)))
     pg.goto(counter_view.url)
-    pg.wait_for_function("window.armbench.info !== null && "
+    # the table is built from the program's declarations before the first snapshot arrives;
+    # the connection badge only changes with that snapshot
+    pg.wait_for_function("window.armbench.info !== null && window.armbench.messages > 0 && "
                          "document.querySelectorAll('#registers tbody tr').length > 0",
                          timeout=15000)
     yield pg
