@@ -17,7 +17,8 @@ from __future__ import annotations
 import glob
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -109,16 +110,62 @@ def quintic_min_time(d: float) -> float:
     return max(15 * d / (8 * V), math.sqrt(10 * d / (math.sqrt(3) * A)), math.cbrt(60 * d / J))
 
 
+@dataclass(frozen=True)
+class RestCase:
+    """One row of motion.md's table of the rest-to-rest cases: its cells as printed, and the
+    same condition and duration in Python (the test checks both the cells and the Python)."""
+
+    label: str  # the first cell
+    phases: frozenset[int]
+    when_tex: str
+    duration_tex: str
+    when: Callable[[float, float, float, float], bool]
+    duration: Callable[[float, float, float, float], float]
+
+
+def _reach(v: float, a: float, j: float) -> float:
+    """The distance of the two ramps to v with both plateaus: where the cruise begins."""
+    return v * (v / a + a / j)
+
+
+REST_CASES = (
+    RestCase("all seven", frozenset(range(1, 8)),
+             r"$v_{\max} \ge a_{\max}^2/j_{\max}$ and "
+             r"$D \ge v_{\max}\left(\frac{v_{\max}}{a_{\max}} + \frac{a_{\max}}{j_{\max}}\right)$",
+             r"$\frac{D}{v_{\max}} + \frac{v_{\max}}{a_{\max}} + \frac{a_{\max}}{j_{\max}}$",
+             lambda d, v, a, j: v >= a * a / j and d >= _reach(v, a, j),
+             lambda d, v, a, j: d / v + v / a + a / j),
+    RestCase("no plateau: 1, 3, 4, 5, 7", frozenset({1, 3, 4, 5, 7}),
+             r"$v_{\max} < a_{\max}^2/j_{\max}$ and $D \ge 2 v_{\max}\sqrt{v_{\max}/j_{\max}}$",
+             r"$\frac{D}{v_{\max}} + 2\sqrt{\frac{v_{\max}}{j_{\max}}}$",
+             lambda d, v, a, j: v < a * a / j and d >= 2 * v * math.sqrt(v / j),
+             lambda d, v, a, j: d / v + 2 * math.sqrt(v / j)),
+    RestCase("no cruise: 1, 2, 3, 5, 6, 7", frozenset({1, 2, 3, 5, 6, 7}),
+             r"$2a_{\max}^3/j_{\max}^2 \le D < v_{\max}\left(\frac{v_{\max}}{a_{\max}} + "
+             r"\frac{a_{\max}}{j_{\max}}\right)$",
+             r"$\frac{a_{\max}}{j_{\max}} + \sqrt{\frac{a_{\max}^2}{j_{\max}^2} + "
+             r"\frac{4D}{a_{\max}}}$",
+             lambda d, v, a, j: 2 * a**3 / j**2 <= d < _reach(v, a, j),
+             lambda d, v, a, j: a / j + math.sqrt(a * a / (j * j) + 4 * d / a)),
+    RestCase("neither: 1, 3, 5, 7", frozenset({1, 3, 5, 7}),
+             r"$D < 2a_{\max}^3/j_{\max}^2$ and $D < 2 v_{\max}\sqrt{v_{\max}/j_{\max}}$",
+             r"$\sqrt[3]{32 D/j_{\max}}$",
+             lambda d, v, a, j: d < 2 * a**3 / j**2 and d < 2 * v * math.sqrt(v / j),
+             lambda d, v, a, j: math.cbrt(32 * d / j)),
+)
+
+
 def rest_case(d: float, v: float, a: float, j: float) -> tuple[set[int], float]:
-    """motion.md's table of the four rest-to-rest cases: the phases and the duration."""
-    cruise_from = v * (v / a + a / j) if v >= a * a / j else 2 * v * math.sqrt(v / j)
-    if v >= a * a / j and d >= cruise_from:
-        return set(range(1, 8)), d / v + v / a + a / j
-    if v < a * a / j and d >= cruise_from:
-        return {1, 3, 4, 5, 7}, d / v + 2 * math.sqrt(v / j)
-    if 2 * a**3 / j**2 <= d < cruise_from:
-        return {1, 2, 3, 5, 6, 7}, a / j + math.sqrt(a * a / (j * j) + 4 * d / a)
-    return {1, 3, 5, 7}, (32 * d / j) ** (1 / 3)
+    """The one case of REST_CASES whose condition holds: its phases and duration."""
+    hits = [c for c in REST_CASES if c.when(d, v, a, j)]
+    assert len(hits) == 1, (d, v, a, j, [c.label for c in hits])
+    return set(hits[0].phases), hits[0].duration(d, v, a, j)
+
+
+def test_the_case_table_is_the_one_checked_here() -> None:
+    for case in REST_CASES:
+        assert table_row(MOTION, case.label)[1:] == [case.when_tex, case.duration_tex], \
+            case.label
 
 
 # ----------------------------------------------------------------------------- printed numbers
