@@ -1,7 +1,8 @@
 """Figures of docs/motion.md: the motion blocks of st/ run scan by scan through the bench.
 
 Compiles st/*.st, runs MotionJointMove, MotionLinear and MotionJog with a 10 ms scan on one
-MotionGroup and plots what they wrote into it:
+MotionGroup and plots what they wrote into it; for the jerk-limited comparison, runs
+MotionJointMove (trapezoid, quintic) and MotionJerkGenerator on one joint with 1 ms scans:
 
     python -m armbench.plots.motion            # docs/figures/motion-*.png, see FIGURES
     python -m armbench.plots.motion --out DIR
@@ -36,6 +37,14 @@ LINE_START = (180.0, -40.0, 150.0)
 LINE_END = (150.3, 60.2, 99.7)
 LINE_SPEED = 50.0  # mm/s
 LINE_ACC = 200.0  # mm/s^2
+# The time-optimal jerk-limited profile against the trapezoid and the quintic (also used by
+# docs/labs/lab6-motion.md and the teacher's guide): the same limits for all three.
+JERK_LIMITS = (60.0, 120.0, 600.0)  # deg/s, deg/s^2, deg/s^3
+JERK_MOVE = 90.0  # deg, rest to rest: Lab 6 step 1's move
+MOVING_START = (40.0, 100.0)  # deg/s, deg/s^2: the joint is still speeding up
+MOVING_MOVE = 60.0  # deg, from that moving start
+FINE_DT = 0.001  # s: fine enough that the curves are the profiles, not their scans
+JERK_COLOURS = ("tab:orange", "tab:green", "tab:blue")
 
 
 def new_group(position: Sequence[float], lower: float = -170.0, upper: float = 170.0,
@@ -270,12 +279,159 @@ def jog_figure(module: Any, out: Path) -> Path:
     return path
 
 
+@dataclass(frozen=True)
+class ProfileTrace:
+    """One joint's setpoints after every scan of one block; index 0 is the start state."""
+
+    name: str
+    duration: float  # s, the block's own plan (its Duration output)
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    qd: NDArray[np.float64]
+    qdd: NDArray[np.float64]
+    qddd: NDArray[np.float64]  # the jerk over the scan ending at t (index 0: 0)
+
+
+def _one_joint_group(v0: float, a0: float, limits: tuple[float, float, float]) -> dict[str, Any]:
+    group = new_group([0.0], max_vel=limits[0], max_acc=limits[1])
+    group["Joints"] = 1
+    group["Velocity"][0] = v0
+    group["Acceleration"][0] = a0
+    return group
+
+
+def compare_profiles(module: Any, dist: float, v0: float = 0.0, a0: float = 0.0,
+                     limits: tuple[float, float, float] = JERK_LIMITS, dt: float = FINE_DT,
+                     tail: float = 0.15) -> list[ProfileTrace]:
+    """The same move of one joint from position 0 with velocity `v0` and acceleration `a0` to
+    rest at `dist`, under the same limits (v, a, j): MotionJointMove's trapezoid (profile 2:
+    v and a; it starts from v0 and ignores a0) and quintic (profile 3: v, a and j; from v0,
+    stretched until it fits), and MotionJerkGenerator's time-optimal jerk-limited profile
+    (from v0 and a0), each run scan by scan with a `dt` scan for the longest duration plus
+    `tail`. The joint moves have no jerk output: theirs is the change of their acceleration
+    over a scan (a step of acceleration shows as a spike of its size over dt)."""
+    vmax, amax, jmax = limits
+    move_inputs: dict[str, Any] = {"Execute": True, "Target": [dist] + [0.0] * 5,
+                                   "Velocity": vmax, "Acceleration": amax, "Jerk": jmax,
+                                   "CycleTime": dt}
+    moves = []
+    for profile, name in ((2, "trapezoid"), (3, "quintic")):
+        run = Run(_one_joint_group(v0, a0, limits))
+        run.q.append([0.0])
+        run.qd.append([v0])
+        run.qdd.append([a0])
+        fb = run.scan(module.new_fb("MotionJointMove"), Profile=profile, **move_inputs)
+        if fb.Error:
+            raise RuntimeError(f"MotionJointMove profile {profile} refused the move: ErrorId "
+                               f"{fb.ErrorId}")
+        moves.append((run, fb, profile, name, float(fb.Duration)))
+    gen = module.new_fb("MotionJerkGenerator")
+    lim = {"MaxVel": vmax, "MaxAcc": amax, "MaxJerk": jmax}
+    zero = [0.0] * 6
+    gen_inputs: dict[str, Any] = {
+        "Enable": True, "CycleTime": dt, "Joints": 1, "VelocityMode": False, "Sync": 0,
+        "TargetPos": [dist] + zero[1:], "TargetVel": zero, "TargetAcc": zero,
+        "Limits": [lim] * 6, "StartPos": zero, "StartVel": [v0] + zero[1:],
+        "StartAcc": [a0] + zero[1:]}
+    gen(**gen_inputs)
+    if gen.Error:
+        raise RuntimeError(f"MotionJerkGenerator refused the move: ErrorId {gen.ErrorId}")
+    durations = [m[-1] for m in moves] + [float(gen.Duration)]
+    scans = int(np.ceil((max(durations) + tail) / dt))
+    t = np.asarray(dt * np.arange(scans + 1), dtype=np.float64)
+
+    traces = []
+    for run, fb, profile, name, duration in moves:
+        for _ in range(scans - 1):
+            run.scan(fb, Profile=profile, **move_inputs)
+        qdd = run.array("qdd")[:, 0]
+        traces.append(ProfileTrace(name, duration, t, run.array("q")[:, 0],
+                                   run.array("qd")[:, 0], qdd,
+                                   np.concatenate([[0.0], np.diff(qdd) / dt])))
+    rows = [(0.0, v0, a0, 0.0),
+            (gen.Position[0], gen.Velocity[0], gen.Acceleration[0], gen.Jerk[0])]
+    for _ in range(scans - 1):
+        gen(**gen_inputs)
+        rows.append((gen.Position[0], gen.Velocity[0], gen.Acceleration[0], gen.Jerk[0]))
+    arr = np.array(rows, dtype=np.float64)
+    traces.append(ProfileTrace("time-optimal jerk-limited", durations[2], t, arr[:, 0],
+                               arr[:, 1], arr[:, 2], arr[:, 3]))
+    return traces
+
+
+def _jerk_comparison_figure(module: Any, dist: float, v0: float, a0: float,
+                            title: str) -> Figure:
+    vmax, amax, jmax = JERK_LIMITS
+    traces = compare_profiles(module, dist, v0, a0)
+    best = traces[-1].duration
+    labels = (f"trapezoid (v, a): {traces[0].duration:.3f} s "
+              f"({traces[0].duration / best:.2f}×)",
+              f"quintic (v, a, j): {traces[1].duration:.3f} s "
+              f"({traces[1].duration / best:.2f}×)",
+              f"time-optimal jerk-limited (v, a, j): {best:.3f} s")
+    fig = Figure(figsize=(10.0, 10.0))
+    axes = fig.subplots(4, 1, sharex=True)
+    names = ("position, deg", "velocity, deg/s", "acceleration, deg/s²", "jerk, deg/s³")
+    for trace, label, colour in zip(traces, labels, JERK_COLOURS, strict=True):
+        series = (trace.q, trace.qd, trace.qdd, trace.qddd)
+        for row, data in enumerate(series):
+            # the jerk over a scan belongs to the scan, drawn as a step ending at t
+            if row == 3:
+                axes[row].step(trace.t[1:], data[1:], where="pre", color=colour, lw=1.2,
+                               label=label)
+            else:
+                axes[row].plot(trace.t, data, color=colour, lw=1.4, label=label)
+    for row, limit in ((1, vmax), (2, amax), (3, jmax)):
+        for sign in (1.0, -1.0):
+            axes[row].axhline(sign * limit, color="grey", lw=0.8, linestyle="--")
+    axes[0].axhline(dist, color="grey", lw=0.8, linestyle=":")
+    axes[3].set_ylim(-1.6 * jmax, 1.6 * jmax)
+    axes[3].text(0.99, 0.04, "a step of acceleration is unbounded jerk: its spike "
+                 f"(step / {FINE_DT * 1000:.0f} ms) leaves the scale",
+                 transform=axes[3].transAxes, ha="right", va="bottom", fontsize=8,
+                 color="0.3")
+    for ax, name in zip(axes, names, strict=True):
+        ax.set_ylabel(name)
+        ax.grid(True, color="0.9")
+    axes[0].legend(fontsize=9, loc="lower right")
+    axes[3].set_xlabel("time, s (dashed: the limits)")
+    axes[0].set_title(title, fontsize=10)
+    return fig
+
+
+def jerk_rest_figure(module: Any, out: Path) -> Path:
+    vmax, amax, jmax = JERK_LIMITS
+    fig = _jerk_comparison_figure(
+        module, JERK_MOVE, 0.0, 0.0,
+        f"{JERK_MOVE:g}° from rest to rest with v = {vmax:g} deg/s, a = {amax:g} deg/s², "
+        f"j = {jmax:g} deg/s³\n(MotionJointMove profiles 2 and 3, MotionJerkGenerator; "
+        f"{FINE_DT * 1000:.0f} ms scans)")
+    path = out / "motion-jerk-rest.png"
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    return path
+
+
+def jerk_moving_figure(module: Any, out: Path) -> Path:
+    vmax, amax, jmax = JERK_LIMITS
+    v0, a0 = MOVING_START
+    fig = _jerk_comparison_figure(
+        module, MOVING_MOVE, v0, a0,
+        f"{MOVING_MOVE:g}° from a moving start (v0 = {v0:g} deg/s, a0 = {a0:g} deg/s²) to "
+        f"rest, same limits (v = {vmax:g}, a = {amax:g}, j = {jmax:g})\n(the trapezoid and "
+        "the quintic start from v0 and drop a0: a step of acceleration at t = 0)")
+    path = out / "motion-jerk-moving.png"
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    return path
+
+
 FIGURES: dict[str, Callable[[Any, Path], Path]] = {
     "motion-joint-profiles.png": joint_profiles_figure,
     "motion-line-startup.png": line_startup_figure,
     "motion-line-path.png": line_path_figure,
     "motion-blend.png": blend_figure,
     "motion-jog.png": jog_figure,
+    "motion-jerk-rest.png": jerk_rest_figure,
+    "motion-jerk-moving.png": jerk_moving_figure,
 }
 
 
