@@ -207,3 +207,55 @@ def test_elbow_takes_the_geometry_as_input(fixes: PlcVariables, t: float, a3: fl
 @pytest.mark.parametrize("length", [42.0, -1.25, 0.0])
 def test_len_renamed(fixes: PlcVariables, length: float) -> None:
     assert _run(fixes, Length=length)["LenOut"] == length
+
+
+# --------------------------------------------------------------------------- a key per question
+
+# A lab asks its questions in a "## Questions" list (1. 2. ...) or inline in its steps,
+# numbered ("**Question 1.**" or "*Question 1.*"); the guide answers each in its "## Lab N"
+# section with a paragraph that opens "**QN." or "**QN (step M).".
+LABS = sorted((DOCS / "labs").glob("lab*.md"))
+_LAB_FILE = re.compile(r"^lab(\d+)-")
+_FENCES = re.compile(r"^```.*?^```\s*$", re.S | re.M)
+_INLINE_QUESTION = re.compile(r"(?:^|\s)\*{1,2}Question (\d+)\.\*{1,2}", re.M)
+_LISTED_QUESTION = re.compile(r"^(\d+)\. ", re.M)
+_KEY = re.compile(r"^\*\*Q(\d+)[.\s]", re.M)
+
+
+def _lab_questions(page: Path) -> list[int]:
+    text = _FENCES.sub("", page.read_text(encoding="utf-8"))
+    found = [int(n) for n in _INLINE_QUESTION.findall(text)]
+    section = re.search(r"^## Questions\s*$(.*?)(?=^## |\Z)", text, re.M | re.S)
+    if section:
+        found += [int(n) for n in _LISTED_QUESTION.findall(section.group(1))]
+    return found
+
+
+def _guide_keys() -> dict[int, list[int]]:
+    text = _FENCES.sub("", GUIDE.read_text(encoding="utf-8"))
+    return {int(m.group(1)): [int(n) for n in _KEY.findall(m.group(2))]
+            for m in re.finditer(r"^## Lab (\d+)\b.*?$(.*?)(?=^## |\Z)", text, re.M | re.S)}
+
+
+def test_the_labs_are_numbered_and_ask_numbered_questions() -> None:
+    numbers = [int(m.group(1)) for p in LABS if (m := _LAB_FILE.match(p.name))]
+    assert numbers == list(range(1, len(LABS) + 1)), [p.name for p in LABS]
+    for page in LABS:
+        asked = _lab_questions(page)
+        assert asked and asked == list(range(1, len(asked) + 1)), (
+            f"{page.name}: questions {asked}; number them 1, 2, ... (see the comment above)")
+
+
+@pytest.mark.parametrize("page", LABS, ids=lambda p: p.stem)
+def test_every_lab_question_has_a_key(page: Path) -> None:
+    match = _LAB_FILE.match(page.name)
+    assert match, f"{page.name}: name a lab labN-topic.md"
+    lab = int(match.group(1))
+    keys = _guide_keys()
+    assert lab in keys, f"the teacher's guide has no '## Lab {lab}' section"
+    asked, keyed = set(_lab_questions(page)), keys[lab]
+    assert asked, f"{page.name} asks no question the test can find"
+    assert len(keyed) == len(set(keyed)), f"Lab {lab}: a question keyed twice: {keyed}"
+    assert asked == set(keyed), (
+        f"Lab {lab}: questions without a key {sorted(asked - set(keyed))}, "
+        f"keys without a question {sorted(set(keyed) - asked)}")
