@@ -151,6 +151,27 @@ def test_dollar_amounts_are_not_formulas() -> None:
     assert html.count("<math") == 1 and "$5 and $6" in html and "<code>$x$</code>" in html
 
 
+def test_aligned_equations_become_a_table() -> None:
+    # latex2mathml draws aligned's '&' as a letter and its '\\' as a line break that
+    # browsers ignore: one run-on line reading "r& = ...X& = ...". It must become a table.
+    _needs_docs_extra()
+    from armbench.docsite import mathml
+
+    out = mathml(r"\begin{aligned} r &= a_2 \\ X &= r \cos\theta_1 \end{aligned}", True)
+    assert "<mtable" in out and out.count("<mtr") == 2, out
+    assert ">&<" not in out and 'linebreak="newline"' not in out, out
+
+
+@pytest.mark.parametrize("tex", [r"\begin{gathered} a \\ b \end{gathered}",
+                                 r"a \\ b", r"\begin{eqnarray} a &= b \end{eqnarray}"])
+def test_formulas_that_would_draw_markup_as_text_fail(tex: str) -> None:
+    _needs_docs_extra()
+    from armbench.docsite import FormulaError, mathml
+
+    with pytest.raises(FormulaError, match="aligned"):
+        mathml(tex, True)
+
+
 # --------------------------------------------------------------------------- in the browser
 
 def _chromium() -> str | None:
@@ -175,15 +196,36 @@ def browser() -> Iterator[Browser]:
         b.close()
 
 
-_MEASURE = """() => ({
-  images: Array.from(document.querySelectorAll('img')).map(i => ({
-    src: i.getAttribute('src'), complete: i.complete, width: i.naturalWidth})),
-  formulas: Array.from(document.querySelectorAll('math')).map(m => {
-    const r = m.getBoundingClientRect();
-    return {mathml: m instanceof MathMLElement, width: r.width, height: r.height};
-  }),
-  rawTex: document.querySelector('div[role=main], .col-md-9').innerText.includes('$$'),
-})"""
+_MEASURE = r"""() => {
+  const main = document.querySelector('div[role=main], .col-md-9');
+  const prose = main.cloneNode(true);
+  prose.querySelectorAll('code, pre, math').forEach(e => e.remove());
+  return {
+    images: Array.from(document.querySelectorAll('img')).map(i => ({
+      src: i.getAttribute('src'), complete: i.complete, width: i.naturalWidth})),
+    formulas: Array.from(document.querySelectorAll('math')).map(m => {
+      const r = m.getBoundingClientRect();
+      // rows of aligned equations and matrices: each below the one before
+      const stacked = Array.from(m.querySelectorAll('mtable')).every(t => {
+        const tops = Array.from(t.children).map(row => row.getBoundingClientRect().top);
+        return tops.every((top, i) => i === 0 || top > tops[i - 1]);
+      });
+      // aligned equations (align* tables): the right-hand sides start at one x, the '='
+      const starts = Array.from(m.querySelectorAll('mtable[displaystyle=true]')).map(t =>
+        Array.from(t.children).filter(row => row.children.length > 1).map(row => {
+          const seen = Array.from(row.children[1].children)
+            .find(c => c.getBoundingClientRect().width > 0);
+          return seen ? seen.getBoundingClientRect().left : null;
+        }).filter(x => x !== null));
+      const lined = starts.every(xs => xs.every(x => Math.abs(x - xs[0]) < 1));
+      return {mathml: m instanceof MathMLElement, width: r.width, height: r.height,
+              text: m.textContent, stacked: stacked, lined: lined};
+    }),
+    // TeX that did not become MathML: $$...$$, or $...$ as the build's inline rule reads it
+    rawTex: prose.textContent.includes('$$')
+      || /(?<![\\$\w])\$(?![\s$])[^$\n]+?(?<![\s\\])\$(?![\w$])/.test(prose.textContent),
+  };
+}"""
 
 
 @pytest.mark.parametrize("page", [p for p in READ_PAGES
@@ -209,4 +251,10 @@ def test_page_renders_its_figures_and_formulas(site: Path, browser: Browser,
     flat = [f for f in seen["formulas"] if not (f["mathml"] and f["width"] > 0
                                                  and f["height"] > 0)]
     assert not flat, f"{page.name}: formulas not drawn as MathML: {flat}"
-    assert not seen["rawTex"], f"{page.name} shows raw $$"
+    as_text = [f["text"] for f in seen["formulas"] if re.search(r"[&\\]", f["text"])]
+    assert not as_text, f"{page.name}: formulas that show TeX markup as text: {as_text}"
+    run_on = [f["text"] for f in seen["formulas"] if not f["stacked"]]
+    assert not run_on, f"{page.name}: rows of a formula not drawn one below the other: {run_on}"
+    ragged = [f["text"] for f in seen["formulas"] if not f["lined"]]
+    assert not ragged, f"{page.name}: aligned equations whose '=' do not line up: {ragged}"
+    assert not seen["rawTex"], f"{page.name} shows TeX that did not become MathML"
