@@ -292,3 +292,34 @@ def test_page_renders_its_figures_and_formulas(site: Path, browser: Browser,
     ragged = [f["text"] for f in seen["formulas"] if not f["lined"]]
     assert not ragged, f"{page.name}: aligned equations whose '=' do not line up: {ragged}"
     assert not seen["rawTex"], f"{page.name} shows TeX that did not become MathML"
+
+
+# --------------------------------------------------------------------------- PDF handouts
+
+def test_lab_handouts_print(site: Path, browser: Browser, tmp_path: Path) -> None:
+    # Every lab prints to a PDF of a few A4 sheets; for print the navigation is hidden and the
+    # formulas are still drawn (the PDF is what the print view shows).
+    from armbench.handouts import PRINT_CSS, lab_pages, print_handouts
+
+    pages = lab_pages(site)
+    assert [p.stem for p in pages] == sorted((p.stem for p in (DOCS / "labs").glob("lab*.md")),
+                                             key=lambda s: int(s[3:s.index("-")]))
+    made = print_handouts(browser, pages, tmp_path)
+    for h in made:
+        data = h.pdf.read_bytes()
+        assert data.startswith(b"%PDF-") and data.rstrip().endswith(b"%%EOF"), h.pdf.name
+        assert 1 <= h.sheets <= 12, (h.pdf.name, h.sheets)
+    tab = browser.new_page()
+    try:
+        tab.goto(pages[5].as_uri(), wait_until="load")  # Lab 6: inline and display formulas
+        tab.emulate_media(media="print")
+        tab.add_style_tag(content=PRINT_CSS)
+        shown: dict[str, Any] = tab.evaluate("""() => ({
+          nav: Array.from(document.querySelectorAll('.navbar, .bs-sidebar, footer'))
+                 .some(e => e.getBoundingClientRect().height > 0),
+          formulas: Array.from(document.querySelectorAll('math'))
+                      .filter(m => m.getBoundingClientRect().width > 0).length})""")
+    finally:
+        tab.close()
+    assert not shown["nav"], "the site's navigation is printed"
+    assert shown["formulas"] == _formula_count(DOCS / "labs" / "lab6-motion.md")
