@@ -39,12 +39,36 @@ class FormulaError(ValueError):
     """A formula that latex2mathml cannot convert: the page names it so it can be fixed."""
 
 
+# latex2mathml turns aligned (the environment GitHub and MathJax accept inside $$) into one
+# run of text with the '&' as a letter and '\\' as a line break that browsers ignore, but
+# align* into a table with right/left columns: the same equations, drawn.
+_ALIGNED = re.compile(r"\\(begin|end)\{aligned\}")
+# What is left of '&' and '\\' when latex2mathml did not put them into a table cell.
+_AS_TEXT = re.compile(r">&<|linebreak=\"newline\"")
+# TeX sets a thin space around a function name (\cos p, a \cos p) but not before its
+# parenthesis; latex2mathml writes the name as a plain <mi>, which browsers set tight:
+# "acosp". The spaces are added where TeX has them.
+_FUNCTIONS = "sin|cos|tan|cot|sec|csc|arcsin|arccos|arctan|sinh|cosh|tanh|ln|log|exp"
+_THIN = '<mspace width="0.167em" />'
+_NAME_AFTER = re.compile(rf"(<mi>(?:{_FUNCTIONS})</mi>)"
+                         r"(?!<mo stretchy=\"false\">&#x00028;)(?=<[^/])")
+_NAME_BEFORE = re.compile(rf"(</mi>|</mn>|</msub>|</msup>|</msubsup>|</mrow>|</mfrac>)"
+                          rf"(<mi>(?:{_FUNCTIONS})</mi>)")
+
+
 def mathml(tex: str, display: bool) -> str:
-    """MathML for one TeX formula; raises FormulaError with the formula on failure."""
+    """MathML for one TeX formula; raises FormulaError with the formula on failure, or when
+    its '&' or '\\' would be drawn as text (an environment latex2mathml does not lay out)."""
     try:
-        return str(latex_to_mathml(tex.strip(), display="block" if display else "inline"))
+        out = str(latex_to_mathml(_ALIGNED.sub(r"\\\1{align*}", tex.strip()),
+                                  display="block" if display else "inline"))
     except Exception as exc:  # latex2mathml raises several unrelated types
         raise FormulaError(f"cannot render the formula ${tex}$: {exc}") from exc
+    if _AS_TEXT.search(out):
+        raise FormulaError(f"the formula ${tex}$ would show its '&' or '\\\\' as text: "
+                           "put rows in aligned, pmatrix, array or cases")
+    out = _NAME_BEFORE.sub(rf"\1{_THIN}\2", out)
+    return _NAME_AFTER.sub(rf"\1{_THIN}", out)
 
 
 class _MathPattern(InlineProcessor):  # type: ignore[misc]
@@ -134,11 +158,20 @@ def on_post_build(config: Any) -> None:
 
 
 # The theme styles only tables that carry its own class; Markdown tables carry none. Wide
-# formulas and tables scroll instead of overflowing the column.
+# formulas and tables scroll instead of overflowing the column. Formulas take an OpenType math
+# font installed on the reader's machine if there is one (Chromium's default font draws a
+# square root's sign unstretched beside its argument). Chromium's MathML ignores
+# columnalign and columnspacing, which latex2mathml writes for aligned equations: the rules
+# on mtd line the equations up at their '=' as the attributes ask.
 _SITE_CSS = """
 table { border-collapse: collapse; margin: 0 0 1em; display: block; overflow-x: auto; }
 th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; vertical-align: top; }
 thead th { background: #f2f2f2; }
 div.formula { overflow-x: auto; margin: 0.6em 0 1em; }
-math { font-size: 1.08em; }
+math { font-size: 1.08em; font-family: "Latin Modern Math", "STIX Two Math",
+       "DejaVu Math TeX Gyre", "Cambria Math", math; }
+math mtd[columnalign="left"] { text-align: left; }
+math mtd[columnalign="right"] { text-align: right; }
+math mtable[displaystyle="true"] > mtr > mtd { padding-left: 0; padding-right: 0; }
+math mtable[displaystyle="true"] > mtr > mtd[columnalign="left"] + mtd { padding-left: 2em; }
 """

@@ -42,7 +42,7 @@ _TOP = re.compile(r"(?<![\w./~$<-])((?:" + "|".join(re.escape(d) for d in TOP_DI
 NOT_OURS = {
     # files the reader writes (the CLI's and the labs' examples)
     "my_program.st", "angle.st", "gvl.st", "half.st", "len.st", "planar2.st", "reach.st",
-    "sampler.st", "steps.st", "sum.st", "user.st", "lab2.st",
+    "sampler.st", "steps.st", "sum.st", "user.st", "lab2.st", "lab2-fixes.st",
     # the OpenPLC Editor's project file, the OpenPLC runtime's own files, MatIEC's library
     "plc.xml", "./install.sh", "./core/psm/main.py", "core/psm/main.py",
     "webserver/core/psm/main.py", "webserver/core/psm/psm.py",
