@@ -178,7 +178,7 @@ def layout(prog: CheckedProgram) -> list[Placed]:
 def device_registers(placed: Iterable[Placed]) -> tuple[int, int]:
     """(holding registers, input registers) a Modbus TCP Server Device needs so that every
     placed variable, bits included, is one of its registers (first ones at %IW0 and %QW0)."""
-    need = {"I": 0, "Q": 0}
+    need = {"I": 1, "Q": 1}  # a device has 1..4096 of each
     for p in placed:
         need[p.codesys.area] = max(need[p.codesys.area], p.registers().stop)
     return need["I"], need["Q"]

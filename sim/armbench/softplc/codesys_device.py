@@ -274,6 +274,24 @@ class CodesysDevice:
     def _read_input(self, pdu: bytes) -> bytes:
         return self._read_registers(pdu, self.inputs)
 
+    def store_registers(self, address: int, words: Sequence[int]) -> None:
+        """Write holding registers as a client would (one hold of the scan lock), e.g. the
+        soft PLC's stand-in for the PLC's own input I/O."""
+        if not 0 <= address <= address + len(words) <= self.holding_registers:
+            raise ValueError(f"holding registers {address}..{address + len(words) - 1} are "
+                             f"not all among the device's {self.holding_registers}")
+        data = b"".join(w.to_bytes(2, "little") for w in words)
+        with self.lock:
+            self.holding[2 * address: 2 * address + len(data)] = data
+
+    def store_coil(self, address: int, value: bool) -> None:
+        """Write one coil as a client would."""
+        if not 0 <= address < 8 * len(self.holding):
+            raise ValueError(f"coil {address} is not among the device's "
+                             f"{8 * len(self.holding)}")
+        with self.lock:
+            self._store_bits(address, 1, int(value))
+
     def _store_bits(self, start: int, count: int, bits: int) -> None:
         """Set ``count`` coils from ``start`` to the low bits of ``bits``; caller locks."""
         first, last = start >> 3, (start + count - 1) >> 3
