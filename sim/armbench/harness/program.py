@@ -483,9 +483,9 @@ def _read_only(var: Variable) -> str:
     if var.flavor == mm.OPENPLC:
         return (f"{var.name} at {var.location} is an input: Modbus reads it, the PLC's I/O "
                 "writes it (on the soft PLC, ProgramPlc.set_input writes it)")
-    kind = "discrete input" if var.table == "discrete" else "input register"
+    kind = "a discrete input" if var.table == "discrete" else "an input register"
     return (f"{var.name} ({var.source_location}) is an output of the program in the "
-            f"{var.flavor.title} layout, {var.location}: a {kind}, which Modbus reads and only "
+            f"{var.flavor.title} layout, {var.location}: {kind}, which Modbus reads and only "
             "the program writes")
 
 

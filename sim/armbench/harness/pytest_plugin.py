@@ -281,7 +281,8 @@ def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
     if reason is None or reason.startswith("has no free mailbox"):
         return reason
     for other in FLAVORS:
-        if other != flavor and _hello(host, port, timeout_s, other) is None:
+        if other != flavor and _counts_scans(host, port, timeout_s, other) \
+                and _hello(host, port, timeout_s, other) is None:
             layout = "the CODESYS variant's layout" if other == CODESYS.name else \
                 "OpenPLC's register map"
             return (f"runs the arm controller in {layout}, not the {flavor} one this session "
@@ -291,6 +292,28 @@ def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
               else "plc_project/openplc/arm_controller.st")
     return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
             f"command within {timeout_s:g} s (load {upload})")
+
+
+def _counts_scans(host: str, port: int, timeout_s: float, flavor: str,
+                  within_s: float = 0.5) -> bool:
+    """The controller's ScanCount, read where ``flavor`` has it, moves within ``within_s``:
+    a quick look before a Hello (which waits ``timeout_s`` for an answer that never comes
+    from a PLC speaking another layout)."""
+    from ..controller_client import ArmControllerClient
+    from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
+
+    try:
+        with PlcClient(host, port, timeout_s=timeout_s) as client:
+            ctl = ArmControllerClient(client, timeout_s=timeout_s, flavor=flavor)
+            first = ctl.scan_count()
+            deadline = time.monotonic() + within_s
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+                if ctl.scan_count() != first:
+                    return True
+    except (ModbusError, ModbusIoError):
+        pass
+    return False
 
 
 def _hello(host: str, port: int, timeout_s: float, flavor: str) -> str | None:
@@ -565,17 +588,19 @@ def plc_vars(program_plc: ProgramPlc) -> Iterator[PlcVariables]:
 
 @dataclass
 class SoftPlcFactory:
-    """``soft_plc(*files, library=True, signature=None, scan_counter=None)``: compile the
-    files and start a soft PLC running them; returns its ProgramPlc."""
+    """``soft_plc(*files, library=True, signature=None, scan_counter=None,
+    flavor="openplc")``: compile the files and start a soft PLC running them, serving
+    ``flavor``'s register layout; returns its ProgramPlc."""
 
     stack: contextlib.ExitStack[bool | None] = field(default_factory=contextlib.ExitStack)
 
     def __call__(self, *files: str | Path, library: bool = True,
-                 signature: str | None = None, scan_counter: str | None = None) -> ProgramPlc:
+                 signature: str | None = None, scan_counter: str | None = None,
+                 flavor: str = "openplc") -> ProgramPlc:
         from .program import PlcProgram, serve_program
 
         program = PlcProgram.load(files, library=library, signature=signature,
-                                  scan_counter=scan_counter)
+                                  scan_counter=scan_counter, flavor=flavor)
         return self.stack.enter_context(serve_program(program))
 
 

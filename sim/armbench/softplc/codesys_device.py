@@ -169,12 +169,20 @@ class CodesysDevice:
         self.holding = bytearray(2 * self.holding_registers)
         self.inputs = bytearray(2 * self.input_registers)
         size = {"I": len(self.holding), "Q": len(self.inputs)}
+        owner: dict[tuple[str, int], str] = {}
         for b in self.bindings:
             end = b.device_byte + (1 if b.bit is not None else b.size)
             if end > size[b.area]:
                 raise ValueError(f"{b.name} lies past the device's "
                                  f"{'holding' if b.area == 'I' else 'input'} registers "
                                  f"({size[b.area] // 2})")
+            covered = (range(8 * b.device_byte + b.bit, 8 * b.device_byte + b.bit + 1)
+                       if b.bit is not None else range(8 * b.device_byte, 8 * end))
+            for bit in covered:
+                other = owner.setdefault((b.area, bit), b.name)
+                if other != b.name:
+                    raise ValueError(f"{b.name} and {other} share bit {bit % 8} of byte "
+                                     f"{bit // 8} of the %{b.area} data")
         words = [b for b in self.bindings if b.bit is None]
         bits = [b for b in self.bindings if b.bit is not None]
         self._in_runs = _runs([b for b in words if b.area == "I"])
