@@ -223,6 +223,13 @@ def render_register_map(placed: list[Placed], title: str) -> str:
         "significant word first. Not verified on a CODESYS runtime here (none can be installed",
         "on this machine); the layout itself is checked by `tests/export/test_codesys.py`.",
         "",
+        "Clients and tests speak this layout as the Modbus flavor `codesys`: armbench's pytest",
+        "plugin with `--plc-address HOST:502 --plc-flavor codesys` (the arm controller's suite:",
+        "`python -m pytest tests/modbus --plc-address HOST:502 --plc-flavor codesys`), a script",
+        "with `ArmControllerClient(PlcClient(HOST, 502), flavor=\"codesys\")`; `armbench serve",
+        "--flavor codesys` runs the program in a soft PLC serving this layout (README,",
+        "\"Testing a real PLC over Modbus\").",
+        "",
         *([f"**Warning**: more than {DEVICE_MAX_REGISTERS} registers are needed, the most a "
            "Modbus TCP Server Device offers: this program does not fit one device.", ""]
           if max(holding, inputs) > DEVICE_MAX_REGISTERS else []),
