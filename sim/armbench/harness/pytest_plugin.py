@@ -287,11 +287,11 @@ def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
                 "OpenPLC's register map"
             return (f"runs the arm controller in {layout}, not the {flavor} one this session "
                     f"speaks (--plc-flavor {flavor}): {_flavor_hint(other)}")
-    upload = ("plc_project/codesys/arm_controller_codesys.xml with the Modbus TCP Server "
-              "Device of plc_project/codesys/register-map.md" if flavor == CODESYS.name
-              else "plc_project/openplc/arm_controller.st")
+    load = ("import plc_project/codesys/arm_controller_codesys.xml, its Modbus TCP Server "
+            "Device set up as plc_project/codesys/register-map.md says" if flavor == CODESYS.name
+            else "upload plc_project/openplc/arm_controller.st")
     return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
-            f"command within {timeout_s:g} s (load {upload})")
+            f"command within {timeout_s:g} s ({load})")
 
 
 def _counts_scans(host: str, port: int, timeout_s: float, flavor: str,
@@ -505,18 +505,22 @@ def _real_program_plc(request: pytest.FixtureRequest,
     from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
     from .program import check_identity, other_flavor
 
-    with PlcClient(host, port, timeout_s=PROBE_TIMEOUT_S) as client:
-        try:
-            reason = check_identity(client, plc_program, PROBE_TIMEOUT_S)
-        except (ModbusError, ModbusIoError) as exc:
-            reason = f"answers Modbus, but reading {plc_program.name}'s variables fails ({exc})"
-        if reason is not None:
-            found_flavor = other_flavor(client, plc_program, PROBE_TIMEOUT_S)
-            if found_flavor is not None:
-                reason = (f"serves {plc_program.name} in the {found_flavor.title} layout, not "
-                          f"the {plc_program.flavor.title} one this session speaks "
-                          f"(--plc-flavor {plc_program.flavor.name}): "
-                          f"{_flavor_hint(found_flavor.name)}")
+    try:
+        with PlcClient(host, port, timeout_s=PROBE_TIMEOUT_S) as client:
+            try:
+                reason = check_identity(client, plc_program, PROBE_TIMEOUT_S)
+            except ModbusError as exc:
+                reason = (f"answers Modbus, but reading {plc_program.name}'s variables fails "
+                          f"({exc})")
+            if reason is not None:
+                layout = other_flavor(client, plc_program, PROBE_TIMEOUT_S)
+                if layout is not None:
+                    reason = (f"serves {plc_program.name} in the {layout.title} layout, not the "
+                              f"{plc_program.flavor.title} one this session speaks "
+                              f"(--plc-flavor {plc_program.flavor.name}): "
+                              f"{_flavor_hint(layout.name)}")
+    except ModbusIoError as exc:
+        reason = f"answers Modbus, but reading {plc_program.name}'s variables fails ({exc})"
     if reason is not None:
         pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
                     returncode=pytest.ExitCode.USAGE_ERROR)
