@@ -257,11 +257,12 @@ class PlcProgram:
         if var is not None:
             return var
         if key in self.unreachable:
-            served = ("it serves %IX %QX %IW %QW %MW %MD %ML" if self.flavor == mm.OPENPLC
-                      else "it places only the programs' own located variables")
-            raise UnknownVariable(
-                f"{name} is located at {self.unreachable[key]}, which the {self.flavor.title} "
-                f"layout does not serve over Modbus ({served})")
+            server = ("OpenPLC does not serve over Modbus (it serves %IX %QX %IW %QW %MW %MD "
+                      "%ML)" if self.flavor == mm.OPENPLC else
+                      f"the {self.flavor.title} layout does not serve over Modbus (it places "
+                      "only the programs' own located variables)")
+            raise UnknownVariable(f"{name} is located at {self.unreachable[key]}, which "
+                                  f"{server}")
         owners = [f"{v.instance}.{v.name}" for k, v in self.variables.items()
                   if k.endswith(f".{key}")]
         if owners:
