@@ -16,7 +16,8 @@ Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in
 - ``plc_vars``: typed access by name, ``plc_vars["Level"] = 12.5``, ``plc_vars.wait_scans(1)``.
 - ``modbus``: a plain :class:`~armbench.softplc.modbus_client.PlcClient` connected to it.
 - ``soft_plc``: a factory, ``soft_plc("a.st", library=False)``, for tests that start soft PLCs
-  of their own; each is stopped at the end of the test.
+  of their own (``flavor="codesys"``: serving the CODESYS layout); each is stopped at the end
+  of the test.
 
 The arm controller (``plc_project/Controller.st``):
 
