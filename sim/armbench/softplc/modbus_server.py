@@ -1,5 +1,7 @@
 """Modbus TCP server over a :class:`ProcessImage` with OpenPLC v3's address map
-(docs/matiec-facts.md).
+(docs/matiec-facts.md), or with the CODESYS variant's layout when given a
+:class:`~armbench.softplc.codesys_device.CodesysDevice` (its requests and rules are that
+module's; the connection handling below is shared).
 
 Hand-written MBAP/PDU handling instead of pymodbus: it is several times faster per request,
 lets every request run under the scan lock (so function 16 lands atomically between scans),
