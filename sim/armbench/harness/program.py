@@ -538,6 +538,9 @@ def other_flavor(client: PlcClient, program: PlcProgram,
     nothing tells (no readable signature, no scan counter)."""
     from ..softplc.modbus_client import ModbusError, ModbusIoError
 
+    # A quick look: a counter that moves at all moves within a few dozen scans; the session's
+    # own flavor has had the whole timeout already.
+    look_s = min(timeout_s, max(0.5, 20 * program.scan_interval_ns / 1e9))
     for fl in mm.FLAVORS.values():
         if fl == program.flavor:
             continue
@@ -546,7 +549,7 @@ def other_flavor(client: PlcClient, program: PlcProgram,
         if (sig is None or not sig.readable) and other.scan_counter is None:
             continue
         try:
-            if check_identity(client, other, timeout_s) is None:
+            if check_identity(client, other, look_s) is None:
                 return fl
         except (ModbusError, ModbusIoError):
             continue
