@@ -8,6 +8,9 @@ running), transactions per second of
 * the soft PLC with its compiled request path (``armbench serve``'s default),
 * the soft PLC with the Python request path (``ModbusServer(fast_path=False)``, the server
   before the fast path),
+* the soft PLC serving the CODESYS variant's layout (``armbench serve --flavor codesys``:
+  its Modbus TCP Server Device model, always in Python), where BatchX01.. are holding
+  registers 800.. (plc_project/codesys/register-map.md),
 * the OpenPLC v3 runtime running ``plc_project/openplc/arm_controller.st``, where the
   environment variable ``OPENPLC_RUN`` names a script that starts it (``OPENPLC_RUN FILE.st
   PORT``: builds FILE.st into the runtime, serves Modbus TCP on PORT, prints a line with
@@ -68,19 +71,25 @@ def build_client(out_dir: Path) -> Path:
     return exe
 
 
-def serve_soft_plc(conn: Connection, fast: bool, cpus: set[int] | None) -> None:
+def serve_soft_plc(conn: Connection, fast: bool, cpus: set[int] | None,
+                   flavor: str = "openplc") -> None:
     """Child process: the controller in a real-time soft PLC with its Modbus server, as
-    `armbench serve` runs it, on the compiled or the Python request path."""
+    `armbench serve` runs it, on the compiled or the Python request path (``flavor``
+    codesys: the CODESYS layout, Python only)."""
     import threading
 
     from armbench.softplc import ModbusServer, SoftPlc
     from armbench.softplc.loader import load_program
+    from armbench.softplc.serving import soft_plc as serving
 
     pin(cpus)
     prog = load_program(list(SOURCES))
-    # The Python path takes a threading.Lock, as the server did before the compiled path.
-    plc = SoftPlc(prog) if fast else SoftPlc(prog, lock=threading.Lock())
-    server = ModbusServer(prog.image, plc.lock, port=0, fast_path=fast)
+    if flavor != "openplc":
+        plc, server = serving(prog, flavor, port=0)
+    else:
+        # The Python path takes a threading.Lock, as the server did before the compiled path.
+        plc = SoftPlc(prog) if fast else SoftPlc(prog, lock=threading.Lock())
+        server = ModbusServer(prog.image, plc.lock, port=0, fast_path=fast)
     if server.fast_path != fast:
         raise SystemExit("the compiled request path is not available")
     with server:
@@ -117,20 +126,22 @@ def child_named(parent: int, name: str, timeout_s: float = 10.0) -> int:
 class Server:
     port: int
     pid: int
+    address: int  # of BatchX01 in the layout this server serves
 
 
 @contextlib.contextmanager
-def soft_plc(fast: bool, cpus: set[int] | None) -> Iterator[Server]:
+def soft_plc(fast: bool, cpus: set[int] | None, flavor: str = "openplc") -> Iterator[Server]:
     ctx = multiprocessing.get_context("spawn")
     parent, child = ctx.Pipe()
-    process = ctx.Process(target=serve_soft_plc, args=(child, fast, cpus), daemon=True)
+    process = ctx.Process(target=serve_soft_plc, args=(child, fast, cpus, flavor),
+                          daemon=True)
     process.start()
     try:
         if not parent.poll(120):
             raise SystemExit("the soft PLC did not start")
         port: int = parent.recv()
         assert process.pid is not None
-        yield Server(port, process.pid)
+        yield Server(port, process.pid, controller_map(flavor)["BATCHX01"].address)
     finally:
         parent.send("stop")
         process.join(10)
@@ -166,7 +177,8 @@ def openplc(cpus: set[int] | None) -> Iterator[Server | None]:
                 yield None
                 return
             time.sleep(0.2)
-        yield Server(port, child_named(proc.pid, "openplc"))
+        yield Server(port, child_named(proc.pid, "openplc"),
+                     controller_map()["BATCHX01"].address)
     finally:
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)  # the script stops the runtime and cleans up
@@ -178,12 +190,12 @@ def openplc(cpus: set[int] | None) -> Iterator[Server | None]:
         log.close()
 
 
-def measure(client: Path, server: Server, seconds: float, address: int,
+def measure(client: Path, server: Server, seconds: float,
             cpus: set[int] | None) -> tuple[float, float]:
     """(transactions/s, server CPU µs per transaction)."""
     cpu0 = cpu_ns(server.pid)
     out = subprocess.run([str(client), "127.0.0.1", str(server.port), f"{seconds:g}",
-                          str(address), str(REGISTERS)], capture_output=True, text=True,
+                          str(server.address), str(REGISTERS)], capture_output=True, text=True,
                          preexec_fn=(lambda: pin(cpus)) if cpus else None)
     cpu = cpu_ns(server.pid) - cpu0
     if out.returncode != 0:
@@ -211,13 +223,13 @@ def main(argv: list[str] | None = None) -> int:
     if a.cpus == "split":
         first, *rest = sorted(os.sched_getaffinity(0))
         client_cpus, server_cpus = {first}, {rest[0] if rest else first}
-    address = controller_map()["BATCHX01"].address
-
     with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
         client = build_client(Path(tmp))
         servers: dict[str, Server] = {
             "soft PLC, compiled path": stack.enter_context(soft_plc(True, server_cpus)),
             "soft PLC, Python path": stack.enter_context(soft_plc(False, server_cpus)),
+            "soft PLC, CODESYS layout": stack.enter_context(
+                soft_plc(False, server_cpus, "codesys")),
         }
         if a.no_openplc:
             print("OpenPLC runtime: skipped (--no-openplc)")
@@ -228,12 +240,14 @@ def main(argv: list[str] | None = None) -> int:
         names = list(servers)
         figures: dict[str, list[float]] = {n: [] for n in names}
         cpu: dict[str, list[float]] = {n: [] for n in names}
-        print(f"FC16 write of {REGISTERS} registers at {address} + FC3 read back, one "
-              f"connection, {a.seconds:g} s per measurement, CPUs {a.cpus}; tx/s per round:")
+        print(f"FC16 write of {REGISTERS} registers at BatchX01 (OpenPLC "
+              f"{servers[names[0]].address}, CODESYS {servers['soft PLC, CODESYS layout'].address})"
+              f" + FC3 read back, one connection, {a.seconds:g} s per measurement, CPUs "
+              f"{a.cpus}; tx/s per round:")
         for r in range(a.rounds):
             order = names[r % len(names):] + names[: r % len(names)]
             for name in order:
-                tps, us = measure(client, servers[name], a.seconds, address, client_cpus)
+                tps, us = measure(client, servers[name], a.seconds, client_cpus)
                 figures[name].append(tps)
                 cpu[name].append(us)
             print(f"  round {r + 1}: " + ", ".join(f"{n} {figures[n][-1]:.0f}" for n in names))

@@ -206,22 +206,31 @@ def _finite(o: object) -> object:
 def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.loader import LoadedProgram, load_program
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
-    from .softplc.scan import SoftPlc
+    from .softplc.serving import soft_plc
 
+    if args.web and args.flavor != "openplc":
+        print("armbench: error: --web: the live view speaks OpenPLC's register map only; "
+              "leave out --flavor codesys to use it", file=sys.stderr)
+        return EXIT_USAGE
     # Without files: the armbench library and the controller.
     checked = _checked(args) if args.files else None
     prog = LoadedProgram(_module_of(checked)) if checked is not None else \
         load_program(default_project().sources())
-    plc = SoftPlc(prog)
-    server = ModbusServer(
-        prog.image, plc.lock, host=args.host, port=args.port,
-        max_clients=DEFAULT_MAX_CLIENTS if args.max_clients is None else args.max_clients,
-        idle_timeout_s=DEFAULT_IDLE_TIMEOUT_S if args.idle_timeout is None else args.idle_timeout)
-    # The server's warnings (non-loopback address, failed requests) as one stderr line each;
-    # without a handler only Python's bare last-resort output would show them.
+    try:
+        plc, server = soft_plc(
+            prog, args.flavor, host=args.host, port=args.port,
+            max_clients=DEFAULT_MAX_CLIENTS if args.max_clients is None else args.max_clients,
+            idle_timeout_s=DEFAULT_IDLE_TIMEOUT_S if args.idle_timeout is None
+            else args.idle_timeout)
+    except ValueError as exc:  # a variable the CODESYS layout cannot serve from the image
+        print(f"armbench: error: --flavor {args.flavor}: {exc}", file=sys.stderr)
+        return EXIT_FAIL
+    # The server's warnings (non-loopback address, failed requests, in the server or the
+    # CODESYS device) as one stderr line each; without a handler only Python's bare
+    # last-resort output would show them.
     to_stderr = logging.StreamHandler(sys.stderr)
     to_stderr.setFormatter(logging.Formatter("armbench: %(levelname)s: %(message)s"))
-    server_log = logging.getLogger(ModbusServer.__module__)
+    server_log = logging.getLogger(ModbusServer.__module__.rpartition(".")[0])
     server_log.addHandler(to_stderr)
     try:
         return _serve(args, prog, plc, server, checked)
@@ -239,7 +248,9 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
         return EXIT_FAIL
     plc.run()
     plc.start()
-    print(f"serving Modbus TCP on {args.host}:{server.port}; tasks: "
+    layout = "" if server.device is None else \
+        ", the CODESYS variant's register layout (plc_project/codesys/register-map.md)"
+    print(f"serving Modbus TCP on {args.host}:{server.port}{layout}; tasks: "
           + ", ".join(f"{t.name} every {t.interval_ns / 1e6:g} ms" for t in prog.tasks),
           flush=True)
     web = None
@@ -448,6 +459,10 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-clients", type=argtypes.positive_count, default=None, metavar="N",
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")
+    s.add_argument("--flavor", choices=("openplc", "codesys"), default="openplc",
+                   help="the Modbus register layout served: OpenPLC's map (default) or the "
+                        "CODESYS variant's, as `armbench export` lays the program out for a "
+                        "CODESYS Modbus TCP Server Device")
     s.add_argument("--web", action="store_true",
                    help="also serve the live view over HTTP (the program's located variables "
                    "and a trace; for the arm controller the arm in 3-D and its commands); it "

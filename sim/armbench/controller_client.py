@@ -1,6 +1,9 @@
 """Client side of ``plc_project/Controller.st``: the mailbox handshake over Modbus (HANDSHAKE in
 the program's header, docs/register-map.md), with every address taken from the register map
 derived from the program (:mod:`armbench.registermap`), so the client cannot drift from the ST.
+The map is that of a Modbus flavor: OpenPLC's (docs/register-map.md, the default) or, with
+``flavor="codesys"``, the CODESYS variant's (plc_project/codesys/register-map.md: outputs read
+as input registers with function 4, 32-bit values least significant word first).
 
 One client = one random session id and, while it talks to the PLC, one of the controller's
 mailboxes. A command is one FC16 write of the mailbox's command block, then polls of the
@@ -31,6 +34,7 @@ from .mailbox_check import check_word
 from .registermap import Register, controller_constants, controller_map
 from .softplc import modbus_map as mm
 from .softplc.modbus_client import ModbusIoError, PlcClient
+from .softplc.modbus_map import Flavor
 
 # Command codes, result codes and states come from Controller.st's constants (one source).
 _K = controller_constants()
@@ -497,42 +501,37 @@ def next_seq(seq: int) -> int:
 
 def _encode(reg: Register, value: float) -> list[int]:
     t = reg.st_type.upper()
-    if t == "REAL":
-        return list(mm.real_to_words(value))
-    if t == "DINT":
-        return list(mm.dint_to_words(int(value)))
-    if t == "UDINT":
-        return list(mm.udint_to_words(int(value)))
-    raise TypeError(f"{reg.name}: no encoder for {reg.st_type}")
+    if t not in ("REAL", "DINT", "UDINT"):
+        raise TypeError(f"{reg.name}: no encoder for {reg.st_type}")
+    return reg.encode(value if t == "REAL" else int(value))
 
 
 def _decode(reg: Register, words: list[int]) -> float:
-    t = reg.st_type.upper()
-    if t == "REAL":
-        return mm.words_to_real(words)
-    if t == "DINT":
-        return mm.words_to_dint(words)
-    if t == "UDINT":
-        return mm.words_to_udint(words)
-    raise TypeError(f"{reg.name}: no decoder for {reg.st_type}")
+    if reg.st_type.upper() not in ("REAL", "DINT", "UDINT"):
+        raise TypeError(f"{reg.name}: no decoder for {reg.st_type}")
+    return reg.decode(words)
 
 
 @dataclass(frozen=True)
 class _Block:
-    """Registers that are read or written together: contiguous holding registers."""
+    """Registers that are read or written together: contiguous registers of one table (holding
+    registers on OpenPLC; under CODESYS what the client writes is in holding registers, what
+    the program writes in input registers)."""
 
     regs: tuple[Register, ...]
+    table: str
     address: int
     length: int
 
     @classmethod
-    def of(cls, names: Iterable[str]) -> _Block:
-        cmap = controller_map()
+    def of(cls, names: Iterable[str], cmap: dict[str, Register]) -> _Block:
         regs = tuple(cmap[n.upper()] for n in names)
-        if any(r.table != "holding" for r in regs):
-            raise ValueError("command, status and batch blocks must be holding registers")
+        tables = {r.table for r in regs}
+        if len(tables) != 1 or tables & {"coil", "discrete"}:
+            raise ValueError(f"the block {regs[0].name}..{regs[-1].name} spans the tables "
+                             f"{sorted(tables)}: a block is registers of one table")
         first = min(r.address for r in regs)
-        return cls(regs, first, max(r.address + r.count for r in regs) - first)
+        return cls(regs, tables.pop(), first, max(r.address + r.count for r in regs) - first)
 
     def encode(self, values: Sequence[float]) -> list[int]:
         words = [0] * self.length
@@ -565,14 +564,19 @@ class ArmControllerClient:
     ``poll_interval_s`` is the sleep between two answer polls (0 = busy loop).
     ``retry_busy``: a command answered Busy (another client's InitPwm runs, or the batch
     buffer is held) is sent again until ``timeout_s``; then the Busy status is returned.
+    ``flavor``: the PLC's register layout, "openplc" or "codesys" (:attr:`registers`).
     """
 
     def __init__(self, plc: PlcClient, timeout_s: float = 5.0,
                  poll_interval_s: float = 0.0005, session: int | None = None,
-                 retry_busy: bool = True) -> None:
+                 retry_busy: bool = True, flavor: str | Flavor = mm.OPENPLC) -> None:
         if session is not None and not (-2**31 <= session < 2**31 and session != 0):
             raise ValueError(f"session must be a non-zero 32-bit signed number, got {session}")
         self.plc = plc
+        self.flavor = mm.flavor(flavor)
+        # the controller's located variables by upper-case name, on this flavor's server
+        self.registers = controller_map(self.flavor)
+        cmap = self.registers
         self.timeout_s = timeout_s
         self.poll_interval_s = poll_interval_s
         self.retry_busy = retry_busy
@@ -583,30 +587,33 @@ class ArmControllerClient:
         # A lower bound on the lease in seconds, measured by open(); until then (the claim
         # itself, where a Hello cannot do harm) 1000 scans of at least 1 ms.
         self._lease_s = 1.0
-        self._commands = [_Block.of(f"Mbx{k:02d}{f}" for f in _COMMAND_FIELDS)
+
+        def block(names: Iterable[str]) -> _Block:
+            return _Block.of(names, cmap)
+
+        self._commands = [block(f"Mbx{k:02d}{f}" for f in _COMMAND_FIELDS)
                           for k in range(1, MAILBOXES + 1)]
-        self._answers = [_Block.of(f"Mbx{k:02d}{f}" for f in _ANSWER_FIELDS)
+        self._answers = [block(f"Mbx{k:02d}{f}" for f in _ANSWER_FIELDS)
                          for k in range(1, MAILBOXES + 1)]
-        self._all_answers = _Block.of(f"Mbx{k:02d}{f}" for k in range(1, MAILBOXES + 1)
-                                      for f in _ANSWER_FIELDS)
-        self._status = _Block.of(_STATUS_FIELDS)
-        self._motion = _Block.of(_MOTION_FIELDS)
+        self._all_answers = block(f"Mbx{k:02d}{f}" for k in range(1, MAILBOXES + 1)
+                                  for f in _ANSWER_FIELDS)
+        self._status = block(_STATUS_FIELDS)
+        self._motion = block(_MOTION_FIELDS)
         self.last_ticket: MotionTicket | None = None  # the motion this client started last
-        self._cal = _Block.of(f"{j}Cal{s}" for j in JOINTS for s in _CAL_SUFFIXES)
+        self._cal = block(f"{j}Cal{s}" for j in JOINTS for s in _CAL_SUFFIXES)
         self.batch_max = _batch_size()
-        self._targets = _Block.of(f"Batch{a}{k:02d}" for k in range(1, self.batch_max + 1)
-                                  for a in "XYZ")
-        self._results = _Block.of(f"{p}{k:02d}" for k in range(1, self.batch_max + 1)
-                                  for p in _RESULT_PREFIXES)
-        self._lut = _Block.of(_LUT_FIELDS)
-        self._five = _Block.of(_FIVE_FIELDS)
-        self._wrist = _Block.of(_WRIST_FIELDS)
-        self._wrist_cal = _Block.of(f"{j}Cal{s}" for j in WRIST_JOINTS for s in _CAL_SUFFIXES)
-        self._gripper = _Block.of(_GRIPPER_FIELDS)
-        self._gripper_cal = _Block.of(f"GripperCal{s}" for s in _CAL_SUFFIXES)
-        self._imu = _Block.of(_IMU_FIELDS)
-        self._follow = _Block.of(_FOLLOW_FIELDS)
-        cmap = controller_map()
+        self._targets = block(f"Batch{a}{k:02d}" for k in range(1, self.batch_max + 1)
+                              for a in "XYZ")
+        self._results = block(f"{p}{k:02d}" for k in range(1, self.batch_max + 1)
+                              for p in _RESULT_PREFIXES)
+        self._lut = block(_LUT_FIELDS)
+        self._five = block(_FIVE_FIELDS)
+        self._wrist = block(_WRIST_FIELDS)
+        self._wrist_cal = block(f"{j}Cal{s}" for j in WRIST_JOINTS for s in _CAL_SUFFIXES)
+        self._gripper = block(_GRIPPER_FIELDS)
+        self._gripper_cal = block(f"GripperCal{s}" for s in _CAL_SUFFIXES)
+        self._imu = block(_IMU_FIELDS)
+        self._follow = block(_FOLLOW_FIELDS)
         self._channel_regs = [cmap[f"CH{n:02d}OFF"] for n in range(16)]
         self._init_regs = [(cmap[f"INITREG{n}"], cmap[f"INITDATA{n}"]) for n in range(1, 6)]
         self._holds_batch = False
@@ -643,17 +650,25 @@ class ArmControllerClient:
         except ModbusIoError:
             pass  # the next request fails again and _io() decides whether to go on
 
-    def _read(self, address: int, length: int) -> list[int]:
+    def _read(self, b: _Block, length: int | None = None) -> list[int]:
+        """The first ``length`` (default: all) registers of ``b``, in requests of at most
+        124 registers (even: never splitting a 32-bit value)."""
+        length = b.length if length is None else length
         words: list[int] = []
         while len(words) < length:
-            n = min(_MAX_READ_REGS - 1, length - len(words))  # even: never split a 32-bit value
-            words += self.plc.read_holding_registers(address + len(words), n)
+            n = min(_MAX_READ_REGS - 1, length - len(words))
+            words += self.plc.read_table(b.table, b.address + len(words), n)
         return words
 
     def _read_block(self, b: _Block) -> list[float]:
         """One result block, decoded; a broken connection is reopened for ``timeout_s``."""
-        return b.decode(self._io(lambda: self._read(b.address, b.length),
-                                 time.monotonic() + self.timeout_s))
+        return b.decode(self._io(lambda: self._read(b), time.monotonic() + self.timeout_s))
+
+    def read_register(self, name: str) -> int | float:
+        """One located variable of the controller by name, decoded (a BOOL as 0 or 1)."""
+        reg = self.registers[name.upper()]
+        words = self.plc.read_table(reg.table, reg.address, reg.count)
+        return words[0] if reg.table in ("coil", "discrete") else reg.decode(words)
 
     def _write(self, address: int, words: list[int]) -> None:
         done = 0
@@ -667,19 +682,19 @@ class ArmControllerClient:
     def answer(self, mailbox: int) -> Answer:
         """The answer block of ``mailbox`` (1..MAILBOXES)."""
         b = self._answers[mailbox - 1]
-        v = b.decode(self.plc.read_holding_registers(b.address, b.length))
+        v = b.decode(self._read(b))
         return Answer(int(v[0]), int(v[1]), int(v[2]), int(v[3]))
 
     def answers(self) -> list[Answer]:
         """All mailboxes' answer blocks, in mailbox order."""
         b = self._all_answers
-        v = [int(x) for x in b.decode(self._read(b.address, b.length))]
+        v = [int(x) for x in b.decode(self._read(b))]
         return [Answer(*v[i: i + 4]) for i in range(0, len(v), 4)]
 
     def status(self) -> Status:
         """The controller's status; ``error_id``/``ack_seq`` are this client's mailbox's."""
-        f = dict(zip(_STATUS_FIELDS, self._status.decode(
-            self._read(self._status.address, self._status.length)), strict=True))
+        f = dict(zip(_STATUS_FIELDS, self._status.decode(self._read(self._status)),
+                     strict=True))
         a = self.answer(self.mailbox) if self.mailbox is not None else Answer(0, 0, 0, 0)
         return Status(
             mailbox=self.mailbox or 0, ack_seq=a.ack_seq, error_id=a.result,
@@ -697,10 +712,10 @@ class ArmControllerClient:
     def scan_count(self) -> int:
         """The PLC's ScanCount (a reconnection is tried for ``timeout_s`` if the connection
         is broken or not served: also a way to make sure the PLC serves this connection)."""
-        reg = controller_map()["SCANCOUNT"]
-        return mm.words_to_udint(self._io(
-            lambda: self.plc.read_holding_registers(reg.address, 2),
-            time.monotonic() + self.timeout_s))
+        reg = self.registers["SCANCOUNT"]
+        return int(reg.decode(self._io(
+            lambda: self.plc.read_table(reg.table, reg.address, reg.count),
+            time.monotonic() + self.timeout_s)))
 
     def wait_scans(self, scans: int, timeout_s: float = 5.0) -> None:
         """Return after the PLC has run ``scans`` more scans (raises HandshakeTimeout when it
@@ -714,18 +729,18 @@ class ArmControllerClient:
 
     def channel_words(self) -> list[int]:
         """The 16 LEDn_OFF words (one request: they are contiguous)."""
-        first = self._channel_regs[0].address
-        return self.plc.read_holding_registers(first, 16)
+        first = self._channel_regs[0]
+        return self.plc.read_table(first.table, first.address, 16)
 
     def init_frames(self) -> list[tuple[int, int]]:
         """(register, data) of the published PCA9685 init frames 1..5."""
-        first = self._init_regs[0][0].address
-        words = self.plc.read_holding_registers(first, 10)
+        first = self._init_regs[0][0]
+        words = self.plc.read_table(first.table, first.address, 10)
         return [(words[2 * i], words[2 * i + 1]) for i in range(5)]
 
     def calibration(self) -> tuple[Calibration, Calibration, Calibration]:
         """The three joints' calibration as the PLC uses it (the read-back block)."""
-        v = self._cal.decode(self._read(self._cal.address, self._cal.length))
+        v = self._cal.decode(self._read(self._cal))
         n = len(_CAL_SUFFIXES)
         cals = [Calibration(v[i], int(v[i + 1]), *v[i + 2: i + n]) for i in range(0, 3 * n, n)]
         return cals[0], cals[1], cals[2]
@@ -1131,7 +1146,7 @@ class ArmControllerClient:
     def batch_results(self, n: int) -> list[BatchPoint]:
         """The first ``n`` SolveBatch results (read after the acknowledge)."""
         per = len(_RESULT_PREFIXES)
-        words = self._io(lambda: self._read(self._results.address, 2 * per * n),
+        words = self._io(lambda: self._read(self._results, 2 * per * n),
                          time.monotonic() + self.timeout_s)
         v = self._results.decode(words + [0] * (self._results.length - len(words)))
         return [BatchPoint((v[i], v[i + 1], v[i + 2]), (v[i + 3], v[i + 4], v[i + 5]),
@@ -1313,8 +1328,10 @@ class MotionRecorder:
     sample, tagged with the PLC's ScanCount), in a background thread between
     :meth:`start` and :meth:`stop`. Scans it could not sample are counted, never guessed."""
 
-    def __init__(self, host: str, port: int, poll_interval_s: float = 0.001) -> None:
+    def __init__(self, host: str, port: int, poll_interval_s: float = 0.001,
+                 flavor: str | Flavor = mm.OPENPLC) -> None:
         self.host, self.port = host, port
+        self.flavor = mm.flavor(flavor)
         self.poll_interval_s = poll_interval_s
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -1351,7 +1368,7 @@ class MotionRecorder:
     def _run(self, ready: threading.Event) -> None:
         try:
             with PlcClient(self.host, self.port) as plc:
-                ctl = ArmControllerClient(plc)
+                ctl = ArmControllerClient(plc, flavor=self.flavor)
                 last = -1
                 while not self._stop.is_set():
                     m = ctl.motion()

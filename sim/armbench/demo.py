@@ -35,6 +35,7 @@ from .softplc.loader import load_program
 from .softplc.modbus_client import PlcClient
 from .softplc.modbus_server import ModbusServer
 from .softplc.scan import SoftPlc
+from .softplc.serving import soft_plc
 
 # Channels 0, 1, 2 = Base, Shoulder, Elbow (Controller.st).
 SERVO_CHANNELS = (0, 1, 2)
@@ -50,11 +51,13 @@ class RunningPlc:
 
 
 @contextmanager
-def serve_controller(host: str = "127.0.0.1", port: int = 0) -> Iterator[RunningPlc]:
-    """Soft PLC (real-time thread) + Modbus server with the controller; stops both on exit."""
+def serve_controller(host: str = "127.0.0.1", port: int = 0,
+                     flavor: str = "openplc") -> Iterator[RunningPlc]:
+    """Soft PLC (real-time thread) + Modbus server with the controller, serving ``flavor``'s
+    register layout (OpenPLC's map, or ``"codesys"``: the CODESYS variant's); stops both on
+    exit."""
     prog = load_program(list(SOURCES))
-    plc = SoftPlc(prog)
-    server = ModbusServer(prog.image, plc.lock, host=host, port=port)
+    plc, server = soft_plc(prog, flavor, host=host, port=port)
     server.start()
     try:
         plc.start()

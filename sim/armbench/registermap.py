@@ -1,9 +1,13 @@
 """The controller's Modbus register map, derived from the located variables of
 ``plc_project/Controller.st`` (the program is the single source of truth).
 
-Each located variable of the program instance becomes a :class:`Register` with its OpenPLC
-Modbus table and address (docs/matiec-facts.md), its ST type and the comment written on its
-declaration line; its group is the ``(* ... *)`` comment that opens its VAR block.
+Each located variable of the program instance becomes a :class:`Register` with its Modbus
+table and address, its ST type and the comment written on its declaration line; its group is
+the ``(* ... *)`` comment that opens its VAR block. Table and address are those of a Modbus
+flavor: OpenPLC v3's map of the declared address (docs/matiec-facts.md) by default, or, with
+``flavor="codesys"``, the place ``armbench export`` gives the variable in the CODESYS variant
+(:func:`armbench.export.codesys.layout`, the code that writes
+plc_project/codesys/register-map.md) and its register on the Modbus TCP Server Device there.
 :func:`render_markdown` produces ``docs/register-map.md``; ``python -m armbench.registermap``
 rewrites it, and a test fails when the file is stale.
 """
@@ -16,6 +20,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
@@ -25,6 +30,10 @@ from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
 from .softplc import modbus_map as mm
+from .softplc.modbus_map import Flavor
+
+if TYPE_CHECKING:  # imported when a CODESYS map is asked for: it loads the exporters
+    from .export.codesys import Placed
 
 # The program the tools use (the wheel's copy, or the checkout's: armbench.locate).
 _PROJECT = default_project()
@@ -56,6 +65,8 @@ class Register:
     count: int  # registers (or bits) it occupies
     group: str
     description: str
+    flavor: Flavor = mm.OPENPLC  # whose server the table and address are of
+    declared: str = ""  # the address in the source, when the flavor moved it ("": location)
 
     @property
     def index(self) -> int:
@@ -63,6 +74,24 @@ class Register:
         m = _ADDRESS.match(self.location)
         assert m is not None
         return int(m.group(3))
+
+    @property
+    def source_location(self) -> str:
+        """The address the program declares (the soft PLC's image holds it there)."""
+        return self.declared or self.location
+
+    @property
+    def writable(self) -> bool:
+        """A client can write it: a coil or a holding register."""
+        return self.table in ("coil", "holding")
+
+    def encode(self, value: int | float) -> list[int]:
+        """Its registers holding ``value``, in the flavor's word order."""
+        return self.flavor.encode(self.st_type, value)
+
+    def decode(self, words: Sequence[int]) -> int | float:
+        """Its value from its registers, in the flavor's word order."""
+        return self.flavor.decode(self.st_type, list(words))
 
 
 def modbus_location(location: str) -> tuple[str, int, int]:
@@ -127,14 +156,58 @@ def _instance(paths: Sequence[str | Path], instance: str | None) -> InstanceMode
     return _analysed(paths, instance)[1]
 
 
-def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None) -> list[Register]:
+def derive(paths: Sequence[str | Path] = SOURCES, instance: str | None = None,
+           flavor: str | Flavor = mm.OPENPLC) -> list[Register]:
     """The map of the (first, or named) program instance of the sources' CONFIGURATION,
-    in declaration order. Raises CompileFailed when the sources do not check."""
-    return _registers(_instance(paths, instance))
+    in declaration order, on a ``flavor`` server. Raises CompileFailed when the sources do not
+    check."""
+    prog, inst = _analysed(paths, instance)
+    return _registers(prog, inst, mm.flavor(flavor))
 
 
-def _registers(inst: InstanceModel) -> list[Register]:
-    return _located(inst.pou.vars.values(), {}, None)
+def _registers(prog: CheckedProgram, inst: InstanceModel, flavor: Flavor) -> list[Register]:
+    return _located(inst.pou.vars.values(), {}, None,
+                    _Placer(flavor, inst.pou.name, _placements(prog, flavor)))
+
+
+@dataclass(frozen=True)
+class _Placer:
+    """Where the located variables of one POU (or of the CONFIGURATION) are on a flavor's
+    server: ``flavor.name`` "openplc", OpenPLC's map of the declared address; "codesys", the
+    CODESYS variant's place, keyed by (POU, name) upper case."""
+
+    flavor: Flavor
+    pou: str | None  # None: the CONFIGURATION's globals
+    codesys: dict[tuple[str, str], Placed] | None = None
+
+    def __call__(self, var: VarSym) -> tuple[str, str, int, int]:
+        """(location, table, first address, count); ValueError when it is not on Modbus."""
+        assert var.address is not None
+        if self.codesys is None:
+            return (var.address.upper(), *modbus_location(var.address))
+        p = None if self.pou is None else self.codesys.get((self.pou.upper(),
+                                                            var.name.upper()))
+        if p is None:
+            raise ValueError(f"{var.address} is a located global of the CONFIGURATION: the "
+                             "CODESYS variant places only the programs' located variables")
+        kind, address, count = p.modbus
+        return str(p.codesys), _CODESYS_TABLES[kind], address, count
+
+
+def _placements(prog: CheckedProgram, flavor: Flavor
+                ) -> dict[tuple[str, str], Placed] | None:
+    """The CODESYS variant's placement of every located variable for ``flavor`` codesys
+    (None for openplc: the declared addresses are the map)."""
+    if flavor == mm.OPENPLC:
+        return None
+    from .export.codesys import layout
+
+    return {(p.pou.upper(), p.name.upper()): p for p in layout(prog)}
+
+
+# export.codesys's names of the Modbus tables -> Register.table's
+_CODESYS_TABLES = {"holding register": "holding", "input register": "input", "coil": "coil",
+                   "discrete input": "discrete"}
 
 
 @dataclass(frozen=True)
@@ -159,11 +232,14 @@ class ProgramMap:
     unreachable: tuple[Unreachable, ...]
 
 
-def program_map(source: CheckedProgram | Sequence[str | Path]) -> ProgramMap:
-    """The Modbus map of any program (the controller's is one case of it), from a checked
-    program or from its source files. Unlike :func:`derive`, a variable outside OpenPLC's
-    Modbus map is listed in ``unreachable`` instead of failing the whole program. Raises
-    CompileFailed when the sources do not check, ValueError without a CONFIGURATION."""
+def program_map(source: CheckedProgram | Sequence[str | Path],
+                flavor: str | Flavor = mm.OPENPLC) -> ProgramMap:
+    """The Modbus map of any program (the controller's is one case of it) on a ``flavor``
+    server, from a checked program or from its source files. Unlike :func:`derive`, a
+    variable outside the flavor's Modbus map is listed in ``unreachable`` instead of failing
+    the whole program. Raises CompileFailed when the sources do not check, ValueError without
+    a CONFIGURATION."""
+    fl = mm.flavor(flavor)
     if isinstance(source, CheckedProgram):
         prog = source
     else:
@@ -177,29 +253,33 @@ def program_map(source: CheckedProgram | Sequence[str | Path]) -> ProgramMap:
                          "PROGRAM ... WITH")
     sources: dict[str, list[str]] = {}
     unreachable: list[Unreachable] = []
-    regs = _located(prog.config.globals.values(), sources, unreachable)
+    placements = _placements(prog, fl)
+    regs = _located(prog.config.globals.values(), sources, unreachable,
+                    _Placer(fl, None, placements))
     owners: list[str | None] = [None] * len(regs)
     seen: set[str] = set()
     for inst in prog.config.instances:
         if inst.pou.key in seen:
             continue  # a second instance of a PROGRAM shares its located variables
         seen.add(inst.pou.key)
-        mine = _located(inst.pou.vars.values(), sources, unreachable)
+        mine = _located(inst.pou.vars.values(), sources, unreachable,
+                        _Placer(fl, inst.pou.name, placements))
         regs += mine
         owners += [inst.name] * len(mine)
     return ProgramMap(tuple(regs), tuple(owners), tuple(unreachable))
 
 
 def _located(variables: Iterable[VarSym], sources: dict[str, list[str]],
-             unreachable: list[Unreachable] | None) -> list[Register]:
-    """The located ones among ``variables`` as Registers. A location Modbus cannot reach
-    raises ValueError, or goes to ``unreachable`` when that is given."""
+             unreachable: list[Unreachable] | None, place: _Placer) -> list[Register]:
+    """The located ones among ``variables`` as Registers, where ``place`` puts them. A
+    location Modbus cannot reach raises ValueError, or goes to ``unreachable`` when that is
+    given."""
     regs: list[Register] = []
     for var in variables:
         if var.address is None:
             continue
         try:
-            table, address, count = modbus_location(var.address)
+            location, table, address, count = place(var)
         except ValueError as exc:
             if unreachable is None:
                 raise
@@ -210,8 +290,10 @@ def _located(variables: Iterable[VarSym], sources: dict[str, list[str]],
             sources[var.pos.file] = Path(var.pos.file).read_text(
                 encoding="utf-8", errors="replace").splitlines()
         group, description = _group_and_comment(sources[var.pos.file], var.pos.line)
-        regs.append(Register(var.name, str(var.type), var.address.upper(), table, address,
-                             count, group, description))
+        declared = var.address.upper()
+        regs.append(Register(var.name, str(var.type), location, table, address, count, group,
+                             description, place.flavor,
+                             "" if location == declared else declared))
     return regs
 
 
@@ -247,10 +329,6 @@ def _controller_analysis() -> tuple[CheckedProgram, InstanceModel]:
     return _analysed(SOURCES, None)
 
 
-def _controller_instance() -> InstanceModel:
-    return _controller_analysis()[1]
-
-
 @cache
 def controller_constants() -> dict[str, int]:
     """The controller's integer constants, computed once per process: the program's, and
@@ -274,10 +352,16 @@ def controller_constants() -> dict[str, int]:
     return out
 
 
+def controller_map(flavor: str | Flavor = mm.OPENPLC) -> dict[str, Register]:
+    """The controller's map on a ``flavor`` server by variable name (upper case), computed
+    once per process and flavor."""
+    return _controller_map(mm.flavor(flavor))
+
+
 @cache
-def controller_map() -> dict[str, Register]:
-    """The controller's map by variable name (upper case), computed once per process."""
-    return {r.name.upper(): r for r in _registers(_controller_instance())}
+def _controller_map(flavor: Flavor) -> dict[str, Register]:
+    prog, inst = _controller_analysis()
+    return {r.name.upper(): r for r in _registers(prog, inst, flavor)}
 
 
 def _header_sections(names: Sequence[str]) -> list[str]:

@@ -87,3 +87,39 @@ def test_serve_answers_modbus(prog: Path) -> None:
     finally:
         proc.kill()
         proc.wait()
+
+
+def test_serve_the_codesys_layout(prog: Path) -> None:
+    """--flavor codesys: what the program writes (val %MD0 -> %QD0, out %QW2 -> %QW2, neither
+    moved) is read as input registers with function 4, the REAL least significant word
+    first; OpenPLC's %MD0 (holding register 2048) is not on this device."""
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "armbench.cli", "serve", str(prog),
+                             "--port", str(port), "--duration", "3", "--flavor", "codesys"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert "serving Modbus TCP" in line and "CODESYS variant's register layout" in line
+        deadline = time.monotonic() + 2.0
+        with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
+            while True:
+                s.sendall(struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 3))
+                reply = s.recv(64)
+                lo, hi, out = struct.unpack(">HHH", reply[9:15])
+                val = struct.unpack("<f", struct.pack("<HH", lo, hi))[0]
+                if val > 1.0 or time.monotonic() > deadline:
+                    break
+            assert val > 1.0 and val == int(val * 2) / 2  # 0.5 * n
+            assert out >= 2
+            s.sendall(struct.pack(">HHHBBHH", 2, 0, 6, 1, 3, 2048, 2))
+            assert s.recv(64)[7:9] == bytes((0x83, 2))
+        assert proc.wait(timeout=10) == 0
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def test_serve_web_speaks_openplc_only(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", str(prog), "--web", "--flavor", "codesys", "--port", "0"]) == 2
+    assert "--web: the live view speaks OpenPLC's register map only" in capsys.readouterr().err

@@ -247,3 +247,20 @@ def test_the_variant_carries_the_whole_program(tmp_path: Path, variant: dict[str
         assert d.code == "E0600" and "outside OpenPLC's buffers" in d.render(), d.render()
         address = re.search(r"%[IQ][XWD][\d.]+", d.render())
         assert address is not None and address.group(0) in variant.values(), d.render()
+
+
+def test_the_device_sizes_cover_every_register_and_bit() -> None:
+    """The Modbus TCP Server Device settings the map asks for reach every variable in it:
+    coils share the holding registers' data and discrete inputs the input registers' (16 bits
+    per register), so a bit at Modbus address a needs register a // 16."""
+    text = COMMITTED_MAP.read_text()
+    holding = int(re.search(r"starting at\s+`%IW0`, at least (\d+) of them", text).group(1))  # type: ignore[union-attr]
+    inputs = int(re.search(r"starting at\s+`%QW0`, at least (\d+) of them", text).group(1))  # type: ignore[union-attr]
+    need = {"holding": 0, "input": 0}
+    for row in (ln for ln in text.splitlines() if ln.startswith("| `")):
+        cells = [c.strip().strip("`") for c in row.strip("|").split("|")]
+        table, address, words = cells[4], int(cells[5]), int(cells[6])
+        kind = "holding" if table in ("holding register", "coil") else "input"
+        last = address // 16 if table in ("coil", "discrete input") else address + words - 1
+        need[kind] = max(need[kind], last + 1)
+    assert (holding, inputs) == (need["holding"], need["input"])

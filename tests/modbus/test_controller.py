@@ -26,7 +26,6 @@ from armbench.controller_client import (
     Status,
 )
 from armbench.plant import arm
-from armbench.registermap import controller_map
 
 OSC_HZ = 25.0e6
 PRESCALE = 121
@@ -145,18 +144,17 @@ def test_relax_turns_all_channels_off(plc: ArmControllerClient) -> None:
 
 
 def test_init_pwm_publishes_the_datasheet_sequence(plc: ArmControllerClient) -> None:
-    request = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address)
-    assert request == [False]
+    assert plc.read_register("PWMINITREQUEST") == 0
     pending = plc.submit(CMD_INIT_PWM)
     seen = False
     deadline = time.monotonic() + 2.0
     while not seen and plc.answer(pending.mailbox).ack_seq != pending.seq \
             and time.monotonic() < deadline:
-        seen = plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [True]
+        seen = plc.read_register("PWMINITREQUEST") == 1
     assert seen, "PwmInitRequest (%QX0.0, the PSM's init request) never rose"
     assert plc.wait(pending) == 0
     st = plc.status()
-    assert plc.plc.read_coils(controller_map()["PWMINITREQUEST"].address) == [False]
+    assert plc.read_register("PWMINITREQUEST") == 0
     assert st.error_id == 0 and st.pwm_ready and st.prescale == PRESCALE
     assert st.init_frames == 5
     assert plc.init_frames() == [(0x00, 0x11), (0xFE, PRESCALE), (0x01, 0x04), (0x00, 0x01),

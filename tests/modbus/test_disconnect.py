@@ -29,10 +29,10 @@ SCANS = 5  # scans to wait before concluding "nothing happened"
 ACCEPT_PERIOD_S = 0.15  # OpenPLC v3 accepts a pending connection every 100 ms
 
 
-def _client(address: tuple[str, int]) -> tuple[PlcClient, ArmControllerClient]:
+def _client(address: tuple[str, int], flavor: str) -> tuple[PlcClient, ArmControllerClient]:
     modbus = PlcClient(*address)
     modbus.connect()
-    return modbus, ArmControllerClient(modbus)
+    return modbus, ArmControllerClient(modbus, flavor=flavor)
 
 
 def _snapshot(ctl: ArmControllerClient) -> tuple[Status, list[int]]:
@@ -47,19 +47,20 @@ def _unchanged(ctl: ArmControllerClient, before: tuple[Status, list[int]]) -> No
     assert words == before[1]
 
 
-def _nothing_ran(address: tuple[str, int], before: tuple[Status, list[int]]) -> None:
+def _nothing_ran(address: tuple[str, int], flavor: str,
+                 before: tuple[Status, list[int]]) -> None:
     """A new client sees the state from before, after a few scans, and is served."""
-    modbus, ctl = _client(address)
+    modbus, ctl = _client(address, flavor)
     try:
         ctl.wait_scans(SCANS)
         _unchanged(ctl, before)
     finally:
         modbus.close()
-    _serves_a_new_client(address)
+    _serves_a_new_client(address, flavor)
 
 
-def _serves_a_new_client(address: tuple[str, int]) -> None:
-    modbus, ctl = _client(address)
+def _serves_a_new_client(address: tuple[str, int], flavor: str) -> None:
+    modbus, ctl = _client(address, flavor)
     with modbus, ctl:
         target = (155.0, -12.0, 118.0)
         st = ctl.move_xyz(*target)
@@ -68,8 +69,9 @@ def _serves_a_new_client(address: tuple[str, int]) -> None:
         assert math.dist(target, arm.forward(*st.joints_deg)) <= 0.05
 
 
-def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int]) -> None:
-    modbus, ctl = _client(plc_address)
+def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int],
+                                                     plc_flavor: str) -> None:
+    modbus, ctl = _client(plc_address, plc_flavor)
     ctl.move_xyz(150.0, 0.0, 120.0, wait=True)
     before = _snapshot(ctl)
     # A MoveJoints to another pose, written the wrong way: FC06, one register at a time; the
@@ -85,11 +87,12 @@ def test_half_block_of_single_writes_then_disconnect(plc_address: tuple[str, int
     assert (answer.ack_seq, answer.result) == (before[0].ack_seq + 1, ERR_BAD_CHECK)
     modbus.close()
 
-    _nothing_ran(plc_address, before)
+    _nothing_ran(plc_address, plc_flavor, before)
 
 
-def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) -> None:
-    modbus, ctl = _client(plc_address)
+def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int],
+                                                  plc_flavor: str) -> None:
+    modbus, ctl = _client(plc_address, plc_flavor)
     with modbus, ctl:
         ctl.move_xyz(150.0, 0.0, 120.0, wait=True)
         before = _snapshot(ctl)
@@ -109,12 +112,13 @@ def test_socket_closed_in_the_middle_of_a_request(plc_address: tuple[str, int]) 
         time.sleep(ACCEPT_PERIOD_S)
         ctl.wait_scans(SCANS)
         _unchanged(ctl, before)
-    _nothing_ran(plc_address, before)
+    _nothing_ran(plc_address, plc_flavor, before)
 
 
-def test_disconnect_right_after_sending_a_command(plc_address: tuple[str, int]) -> None:
+def test_disconnect_right_after_sending_a_command(plc_address: tuple[str, int],
+                                                  plc_flavor: str) -> None:
     """The block arrived whole: it runs once, and the client's reconnection finds its answer."""
-    modbus, ctl = _client(plc_address)
+    modbus, ctl = _client(plc_address, plc_flavor)
     with modbus, ctl:
         ctl.move_joints(0.0, 70.0, 65.0)
         answered = ctl.status().commands_answered
@@ -126,9 +130,10 @@ def test_disconnect_right_after_sending_a_command(plc_address: tuple[str, int]) 
         assert st.commands_answered == answered + 1  # the move, nothing else, ran once
 
 
-def test_disconnect_right_after_sending_a_batch(plc_address: tuple[str, int]) -> None:
+def test_disconnect_right_after_sending_a_batch(plc_address: tuple[str, int],
+                                                plc_flavor: str) -> None:
     targets = [(140.0 + i, -20.0 + 2.0 * i, 100.0 + 1.5 * i) for i in range(20)]
-    modbus, ctl = _client(plc_address)
+    modbus, ctl = _client(plc_address, plc_flavor)
     with modbus, ctl, ctl.batch_buffer():
         pending = ctl.submit_batch(targets)  # written, not waited for
         modbus.close()
@@ -140,4 +145,4 @@ def test_disconnect_right_after_sending_a_batch(plc_address: tuple[str, int]) ->
     ref = arm.forward_batch(np.array([r.joints_deg for r in res]))
     assert np.max(np.linalg.norm(ref - want, axis=1)) <= 0.05
     assert np.max(np.linalg.norm(np.array([r.echo_mm for r in res]) - want, axis=1)) <= 0.05
-    _serves_a_new_client(plc_address)
+    _serves_a_new_client(plc_address, plc_flavor)

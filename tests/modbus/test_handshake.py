@@ -34,17 +34,16 @@ from armbench.controller_client import (
     check_word,
     next_seq,
 )
-from armbench.registermap import controller_map
-from armbench.softplc import modbus_map as mm
 from armbench.softplc.modbus_client import PlcClient
 
 SCANS = 3
 
 
 @pytest.fixture
-def second(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
+def second(plc_address: tuple[str, int], plc_flavor: str) -> Iterator[ArmControllerClient]:
     """A second client on its own connection, with its own session and mailbox."""
-    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as ctl:
+    with PlcClient(*plc_address) as modbus, \
+            ArmControllerClient(modbus, flavor=plc_flavor) as ctl:
         ctl.scan_count()  # served before the test goes on (see the plc fixture)
         yield ctl
 
@@ -75,6 +74,14 @@ def test_check_word_matches_the_documented_formula() -> None:
     assert check_word(1, 2, 3, 0, 0, (30.0,)) != check_word(1, 2, 3, 0, 0, (-30.0,))
 
 
+def _in_word_order(plc: ArmControllerClient, msw_first: list[int]) -> list[int]:
+    """Words of 32-bit values, most significant first as docs/register-map.md writes them, in
+    the PLC's order: swapped pairwise for a least-significant-word-first (CODESYS) layout."""
+    if not plc.flavor.lsw_first:
+        return msw_first
+    return [w for i in range(0, len(msw_first), 2) for w in (msw_first[i + 1], msw_first[i])]
+
+
 def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
     """The register-map page's example, word for word, does what the page says."""
     free = [k for k, a in enumerate(plc.answers(), start=1) if a.owner == 0]
@@ -82,9 +89,10 @@ def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
     if any(a.owner == session for a in plc.answers()):
         pytest.skip("session 1234 is in use on this PLC")
     k = free[0]
-    base = controller_map()[f"MBX{k:02d}SEQ"].address
-    words = [0x0000, 0x0001, 0x0000, 0x04D2, 0x0000, 0x0002, 0, 0, 0, 0,
-             0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x7E66, 0xDC19]
+    base = plc.registers[f"MBX{k:02d}SEQ"].address
+    words = _in_word_order(plc, [
+        0x0000, 0x0001, 0x0000, 0x04D2, 0x0000, 0x0002, 0, 0, 0, 0,
+        0x4120, 0x0000, 0x428C, 0x0000, 0x4282, 0x0000, 0, 0, 0, 0, 0, 0, 0x7E66, 0xDC19])
     plc.plc.write_registers(base, words)
     deadline = time.monotonic() + 2.0
     while plc.answer(k).ack_seq != 1 and time.monotonic() < deadline:
@@ -92,7 +100,8 @@ def test_documented_example_moves_the_arm(plc: ArmControllerClient) -> None:
     a = plc.answer(k)
     assert (a.owner, a.ack_seq, a.result, a.ack_check) == (session, 1, 0, 0x7E66DC19)
     assert plc.status().joints_deg == (10.0, 70.0, 65.0)
-    close = [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16 + [0xC5F0, 0x4463]
+    close = _in_word_order(plc, [0x0000, 0x0002, 0x0000, 0x04D2, 0x0000, 0x0009] + [0] * 16
+                           + [0xC5F0, 0x4463])
     plc.plc.write_registers(base, close)
     while plc.answer(k).owner != 0 and time.monotonic() < deadline + 2.0:
         time.sleep(0.002)
@@ -103,15 +112,16 @@ def test_rewriting_only_seq_runs_nothing(plc: ArmControllerClient) -> None:
     plc.move_joints(0.0, 70.0, 65.0, wait=True)
     before = plc.status()
     assert plc.mailbox is not None
-    seq_reg = controller_map()[f"MBX{plc.mailbox:02d}SEQ"]
+    seq_reg = plc.registers[f"MBX{plc.mailbox:02d}SEQ"]
     answered = _seq(plc)
     # FC16 of Seq alone: the stale MoveJoints arguments and Check do not match a new Seq
-    plc.plc.write_registers(seq_reg.address, mm.dint_to_words(next_seq(answered)))
+    plc.plc.write_registers(seq_reg.address, seq_reg.encode(next_seq(answered)))
     plc.wait_scans(SCANS)
     a = plc.answer(plc.mailbox)
     assert (a.ack_seq, a.result) == (next_seq(answered), ERR_BAD_CHECK)
-    # FC06 of the low word only
-    plc.plc.write_register(seq_reg.address + 1, (next_seq(next_seq(answered))) & 0xFFFF)
+    # FC06 of the low word only (the second register MSW first, the first LSW first)
+    low = 0 if plc.flavor.lsw_first else 1
+    plc.plc.write_register(seq_reg.address + low, (next_seq(next_seq(answered))) & 0xFFFF)
     plc.wait_scans(SCANS)
     assert plc.answer(plc.mailbox).result == ERR_BAD_CHECK
     after = plc.status()
@@ -241,14 +251,16 @@ def test_close_frees_the_mailbox_and_a_new_session_can_claim_it(
     assert plc.answer(k).owner == 0
 
 
-def test_all_mailboxes_taken_gives_a_clear_error(plc_address: tuple[str, int]) -> None:
+def test_all_mailboxes_taken_gives_a_clear_error(plc_address: tuple[str, int],
+                                                 plc_flavor: str) -> None:
     with PlcClient(*plc_address) as modbus:
-        clients = [ArmControllerClient(modbus, timeout_s=2.0) for _ in range(MAILBOXES)]
+        clients = [ArmControllerClient(modbus, timeout_s=2.0, flavor=plc_flavor)
+                   for _ in range(MAILBOXES)]
         try:
             taken = sum(1 for a in clients[0].answers() if a.owner != 0)
             for c in clients[: MAILBOXES - taken]:
                 c.open()
-            late = ArmControllerClient(modbus, timeout_s=0.3)
+            late = ArmControllerClient(modbus, timeout_s=0.3, flavor=plc_flavor)
             with pytest.raises(NoFreeMailbox, match=f"all {MAILBOXES} mailboxes"):
                 late.open()
             clients[0].close()
@@ -265,49 +277,67 @@ def test_all_mailboxes_taken_gives_a_clear_error(plc_address: tuple[str, int]) -
 _CLIENT_WRITTEN = ("MBX", "BATCHX", "BATCHY", "BATCHZ")  # command blocks, batch targets
 
 
-def _outputs() -> list[str]:
-    """Every holding register the program writes (all but the client-written blocks)."""
-    regs = controller_map()
-    return [name for name, r in regs.items() if r.table == "holding"
+def _outputs(plc: ArmControllerClient) -> list[str]:
+    """Every register and bit the program writes: all but the client-written blocks and the
+    inputs it declares at %IX/%IW (the PSM's: only its I/O writes them)."""
+    return [name for name, r in plc.registers.items()
+            if not r.source_location.startswith("%I")
             and not (name.startswith(_CLIENT_WRITTEN) and not name.endswith(
                 ("OWNER", "ACKSEQ", "RESULT", "ACKCHECK")))]
 
 
 def _read_outputs(plc: ArmControllerClient, names: list[str]) -> dict[str, list[int]]:
-    regs = controller_map()
-    return {n: plc.plc.read_holding_registers(regs[n].address, regs[n].count) for n in names}
+    regs = plc.registers
+    return {n: plc.plc.read_table(regs[n].table, regs[n].address, regs[n].count)
+            for n in names}
+
+
+def _spoof(plc: ArmControllerClient, name: str, words: list[int]) -> bool:
+    """Write ``words`` over the program's output ``name`` where a client can (holding
+    registers and coils: OpenPLC); False where no Modbus function writes it (an input
+    register or discrete input: the CODESYS layout)."""
+    r = plc.registers[name]
+    if r.table == "holding":
+        plc.plc.write_registers(r.address, words)
+    elif r.table == "coil":
+        plc.plc.write_coil(r.address, bool(words[0]))
+    else:
+        assert r.table in ("input", "discrete"), (name, r.table)
+        return False
+    return True
 
 
 def test_every_output_heals_within_a_scan(plc: ArmControllerClient) -> None:
     plc.init_pwm()
     plc.move_xyz(150.0, 10.0, 120.0, wait=True)
     plc.solve_batch([(150.0, 0.0, 120.0), (1000.0, 0.0, 0.0)])
-    names = _outputs()
+    names = _outputs(plc)
     assert len(names) > 300  # status, calibration, answers, results, init frames, channels
     moving = {"SCANCOUNT", "MOTIONSCAN"}
     before = _read_outputs(plc, names)
-    regs = controller_map()
-    for n in names:  # spoof every one of them
-        r = regs[n]
-        plc.plc.write_registers(r.address, [0x7FC0 if i == 0 else 0x1234 for i in range(r.count)])
-    plc.plc.write_coil(regs["PWMINITREQUEST"].address, True)
+    spoofed = [n for n in names  # spoof every one of them a client can write
+               if _spoof(plc, n, [0x7FC0 if i == 0 else 0x1234
+                                  for i in range(plc.registers[n].count)])]
+    # OpenPLC: every output is a holding register or coil a client can write; CODESYS: none is
+    assert len(spoofed) == (len(names) if plc.flavor.name == "openplc" else 0)
     plc.wait_scans(2)
     after = _read_outputs(plc, names)
     diff = [n for n in names if n not in moving and after[n] != before[n]]
     assert diff == []
-    assert plc.plc.read_coils(regs["PWMINITREQUEST"].address) == [False]
+    assert plc.read_register("PWMINITREQUEST") == 0
 
 
 def test_spoofed_state_cannot_wedge_or_replay(plc: ArmControllerClient) -> None:
     plc.init_pwm()
     st = plc.move_joints(0.0, 70.0, 65.0)
     assert plc.mailbox is not None
-    regs = controller_map()
+    regs = plc.registers
     answered = st.commands_answered
     # Busy state, a zero AckSeq (the old way to replay the last command) and a fake PwmReady
-    plc.plc.write_registers(regs["CTLSTATE"].address, mm.dint_to_words(1))
-    plc.plc.write_registers(regs["BUSYMAILBOX"].address, mm.dint_to_words(plc.mailbox))
-    plc.plc.write_registers(regs[f"MBX{plc.mailbox:02d}ACKSEQ"].address, mm.dint_to_words(0))
+    # (the CODESYS layout has no function that writes them: nothing to spoof there)
+    for name, value in (("CTLSTATE", 1), ("BUSYMAILBOX", plc.mailbox),
+                        (f"MBX{plc.mailbox:02d}ACKSEQ", 0)):
+        assert _spoof(plc, name, regs[name].encode(value)) == (plc.flavor.name == "openplc")
     plc.wait_scans(SCANS)
     st = plc.status()
     assert st.state == 0 and st.busy_mailbox == 0
@@ -339,10 +369,12 @@ def test_bad_calibration_then_an_ordinary_move_cannot_jump(plc: ArmControllerCli
 
 
 @pytest.mark.parametrize("session", [-1, -2**31, 2**31 - 1])
-def test_extreme_sessions_and_sequence_wrap(plc_address: tuple[str, int], session: int) -> None:
+def test_extreme_sessions_and_sequence_wrap(plc_address: tuple[str, int], plc_flavor: str,
+                                            session: int) -> None:
     """Negative and extreme session ids (the check word wraps modulo 2^32 in the PLC as in
     the client), and Seq 2147483647 followed by 1."""
-    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus, session=session) as c:
+    with PlcClient(*plc_address) as modbus, \
+            ArmControllerClient(modbus, session=session, flavor=plc_flavor) as c:
         c._seq = 2**31 - 4  # claim (any Seq may claim) and Hello, then 2^31 - 1, then 1
         assert c.hello().error_id == ERR_OK
         assert c.move_joints(2.0, 70.0, 65.0).error_id == ERR_OK

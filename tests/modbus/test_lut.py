@@ -199,13 +199,15 @@ def test_lut_move_xyz_moves_the_arm(plc: ArmControllerClient) -> None:
     assert plc.status().joints_deg == before
 
 
-def test_lut_move_is_busy_while_init_pwm_runs(plc_address: tuple[str, int]) -> None:
+def test_lut_move_is_busy_while_init_pwm_runs(plc_address: tuple[str, int],
+                                              plc_flavor: str) -> None:
     from armbench.softplc.modbus_client import PlcClient
 
     host, port = plc_address
     with PlcClient(host, port) as c1, PlcClient(host, port) as c2, \
-            PlcClient(host, port) as c3, ArmControllerClient(c1) as a, \
-            ArmControllerClient(c2, retry_busy=False) as b, ArmControllerClient(c3) as c:
+            PlcClient(host, port) as c3, ArmControllerClient(c1, flavor=plc_flavor) as a, \
+            ArmControllerClient(c2, retry_busy=False, flavor=plc_flavor) as b, \
+            ArmControllerClient(c3, flavor=plc_flavor) as c:
         b.hello()
         c.hello()
         # InitPwm runs for several scans (one init frame per scan); a LutMoveXyz sent once

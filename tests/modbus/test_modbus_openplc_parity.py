@@ -23,6 +23,8 @@ from collections.abc import Iterator
 
 import pytest
 
+pytestmark = pytest.mark.openplc_only
+
 MBAP = struct.Struct(">HHHB")
 ADDR_QTY = struct.Struct(">BHH")
 

@@ -33,7 +33,7 @@ def test_abort_by_another_client_is_reported(plc: ArmControllerClient,
     assert plc.move_joints_profile((40.0, 110.0, 100.0), 2, 60.0, 300.0).error_id == 0
     mine = plc.last_ticket
     plc.wait_scans(30)
-    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as other:
+    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus, flavor=plc.flavor) as other:
         assert other.move_xyz(150.0, 20.0, 110.0).error_id == 0
         theirs = other.last_ticket
         outcome = plc.wait_motion(mine)
@@ -54,7 +54,7 @@ def test_stop_from_anyone_brakes_smoothly(plc: ArmControllerClient,
     assert plc.move_joints_profile((40.0, 110.0, 100.0), 1, 120.0, 800.0).error_id == 0
     mine = plc.last_ticket
     plc.wait_scans(25)
-    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as other:
+    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus, flavor=plc.flavor) as other:
         assert other.stop(deceleration=500.0).error_id == 0
         assert plc.wait_motion(mine).state == "superseded"
         assert other.wait_motion().state == "done"
@@ -77,12 +77,14 @@ def test_relax_ends_the_motion(plc: ArmControllerClient) -> None:
     assert plc.move_joints(0.0, 70.0, 65.0, wait=True).error_id == 0
 
 
-def _hostile(address: tuple[str, int], seed: int, seconds: float, errors: list[str]) -> None:
+def _hostile(address: tuple[str, int], flavor: str, seed: int, seconds: float,
+             errors: list[str]) -> None:
     rnd = random.Random(seed)
     nasty = [math.nan, math.inf, -math.inf, 1e30, -1e30, -5.0, 0.0]
     t_end = time.monotonic() + seconds
     try:
-        with PlcClient(*address) as modbus, ArmControllerClient(modbus, timeout_s=10.0) as c:
+        with PlcClient(*address) as modbus, \
+                ArmControllerClient(modbus, timeout_s=10.0, flavor=flavor) as c:
             while time.monotonic() < t_end:
                 k = rnd.randrange(9)
                 if k == 0:
@@ -123,7 +125,8 @@ def test_hostile_clients_never_exceed_the_slew_limit(
     rec = motion_recorder()
     rec.start()
     errors: list[str] = []
-    threads = [threading.Thread(target=_hostile, args=(plc_address, seed, 6.0, errors))
+    threads = [threading.Thread(target=_hostile,
+                                args=(plc_address, plc.flavor.name, seed, 6.0, errors))
                for seed in range(4)]
     for t in threads:
         t.start()

@@ -117,7 +117,7 @@ def test_only_the_jogging_client_steers_the_jog(plc: ArmControllerClient,
                                                 plc_address: tuple[str, int]) -> None:
     assert plc.move_xyz(150.0, 0.0, 120.0, wait=True).error_id == 0
     assert plc.jog_start((0.0, 0.0, 0.3), 30.0, 200.0).error_id == 0
-    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus) as other:
+    with PlcClient(*plc_address) as modbus, ArmControllerClient(modbus, flavor=plc.flavor) as other:
         assert other.jog_update((1.0, 0.0, 0.0)).error_id == ERR_NOT_MOTION_OWNER
         assert other.jog_stop().error_id == ERR_NOT_MOTION_OWNER
     assert plc.jog_stop().error_id == 0

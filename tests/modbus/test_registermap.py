@@ -156,3 +156,34 @@ def test_the_copy_table_must_cover_the_map(monkeypatch: pytest.MonkeyPatch) -> N
                         ((title, (*rows, ("ImuGyroX", "0"))), *COPY_OUT[1:]))
     with pytest.raises(ValueError, match=r"ImuGyroX \(%IW0\) is an input"):
         batchgen.check_copies(text)
+
+
+def test_the_codesys_flavor_map_is_the_committed_codesys_register_map() -> None:
+    """controller_map("codesys") (what the clients and the soft PLC use) and
+    plc_project/codesys/register-map.md (what a CODESYS user sets the device up from) agree
+    row for row, and the map's blocks fit the client's requests."""
+    from armbench.export import CODESYS_MAP_FILE
+
+    regs = registermap.controller_map("codesys")
+    assert registermap.DOC is not None
+    text = (registermap.DOC.parents[1] / "plc_project" / CODESYS_MAP_FILE).read_text()
+    tables = {"holding register": "holding", "input register": "input", "coil": "coil",
+              "discrete input": "discrete"}
+    rows = [[c.strip().strip("`") for c in ln.strip("|").split("|")]
+            for ln in text.splitlines() if ln.startswith("| `")]
+    assert len(rows) == len(regs) > 800
+    for name, _, openplc, codesys, table, address, words in rows:
+        r = regs[name.upper()]
+        assert (r.declared or r.location, r.location, r.table, r.address, r.count) == (
+            openplc, codesys, tables[table], int(address), int(words)), name
+        assert r.flavor.lsw_first
+    # each mailbox's command block is one FC16 write, its answer block one FC4 read
+    for k in range(1, MAILBOXES + 1):
+        cmd = [regs[f"MBX{k:02d}{f}"] for f in ("SEQ", "SESSION", "CODE", "INT1", "INT2",
+                                                 "ARG1", "ARG2", "ARG3", "ARG4", "ARG5",
+                                                 "ARG6", "CHECK")]
+        assert {r.table for r in cmd} == {"holding"}
+        assert max(r.address + r.count for r in cmd) - cmd[0].address == 24
+        ans = [regs[f"MBX{k:02d}{f}"] for f in ("OWNER", "ACKSEQ", "RESULT", "ACKCHECK")]
+        assert {r.table for r in ans} == {"input"}
+        assert max(r.address + r.count for r in ans) - ans[0].address == 8

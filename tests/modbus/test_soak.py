@@ -115,10 +115,10 @@ def _half_frame(address: tuple[str, int]) -> bool:
     return True
 
 
-def _client(address: tuple[str, int], seed: int, stop: threading.Event, tally: Tally,
-            modbus: CountingPlcClient) -> None:
+def _client(address: tuple[str, int], flavor: str, seed: int, stop: threading.Event,
+            tally: Tally, modbus: CountingPlcClient) -> None:
     rng = random.Random(seed)
-    ctl = ArmControllerClient(modbus, timeout_s=10.0)
+    ctl = ArmControllerClient(modbus, timeout_s=10.0, flavor=flavor)
     try:
         modbus.connect()
         with ctl:
@@ -156,14 +156,15 @@ def _client(address: tuple[str, int], seed: int, stop: threading.Event, tally: T
         modbus.close()
 
 
-def _meddler(address: tuple[str, int], stop: threading.Event, answered: list[int]) -> None:
+def _meddler(address: tuple[str, int], flavor: str, stop: threading.Event,
+             answered: list[int]) -> None:
     """Writes valid foreign blocks into owned mailboxes; if one lands in a mailbox freed in
     the meantime it has claimed it: it counts that answer and closes the mailbox again."""
     rng = random.Random(99)
     session = 1_999_999_999
     seq = 0
     with PlcClient(*address) as modbus:
-        spy = ArmControllerClient(modbus, session=session)
+        spy = ArmControllerClient(modbus, session=session, flavor=flavor)
         while not stop.wait(0.02):
             owned = [k for k, a in enumerate(spy.answers(), start=1) if a.owner not in (0,
                                                                                      session)]
@@ -186,18 +187,19 @@ def _meddler(address: tuple[str, int], stop: threading.Event, answered: list[int
                 answered[0] += 1
 
 
-def test_ten_clients_with_disconnects(plc_address: tuple[str, int]) -> None:
+def test_ten_clients_with_disconnects(plc_address: tuple[str, int], plc_flavor: str) -> None:
     with PlcClient(*plc_address) as monitor_bus:
-        monitor = ArmControllerClient(monitor_bus)
+        monitor = ArmControllerClient(monitor_bus, flavor=plc_flavor)
         answered_before = monitor.status().commands_answered
         stop = threading.Event()
         tallies = [Tally() for _ in range(CLIENTS)]
         buses = [CountingPlcClient(*plc_address) for _ in range(CLIENTS)]
         meddled = [0]
-        threads = [threading.Thread(target=_client, args=(plc_address, i, stop, tallies[i],
-                                                          buses[i]))
+        threads = [threading.Thread(target=_client, args=(plc_address, plc_flavor, i, stop,
+                                                          tallies[i], buses[i]))
                    for i in range(CLIENTS)]
-        threads.append(threading.Thread(target=_meddler, args=(plc_address, stop, meddled)))
+        threads.append(threading.Thread(target=_meddler,
+                                        args=(plc_address, plc_flavor, stop, meddled)))
         t0 = time.monotonic()
         for t in threads:
             t.start()

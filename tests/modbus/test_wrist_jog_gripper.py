@@ -17,7 +17,6 @@ References, all independent of the PLC's code:
 from __future__ import annotations
 
 import math
-import struct
 import threading
 import time
 from collections.abc import Iterator
@@ -44,7 +43,7 @@ from armbench.controller_client import (
     Calibration,
 )
 from armbench.plant import arm
-from armbench.registermap import controller_map
+from armbench.registermap import Register
 from armbench.softplc.modbus_client import PlcClient
 from five_axis_ref import fk5, pitch_from_joints, tool_pitch
 
@@ -63,23 +62,24 @@ def fk(q: tuple[float, ...] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return flange[:3, 3], tool
 
 
-def _real(words: list[int], k: int) -> float:
-    return float(struct.unpack(">f", struct.pack(">HH", words[2 * k], words[2 * k + 1]))[0])
+@dataclass(frozen=True)
+class _Span:
+    """Registers from one located variable to another (the same table): one read."""
 
+    table: str
+    address: int
+    length: int
 
-def _dint(words: list[int], k: int) -> int:
-    return int(struct.unpack(">i", struct.pack(">HH", words[2 * k], words[2 * k + 1]))[0])
+    @classmethod
+    def of(cls, regs: dict[str, Register], first: str, last: str) -> _Span:
+        a, b = regs[first], regs[last]
+        assert a.table == b.table, (first, last)
+        return cls(a.table, a.address, b.address + b.count - a.address)
 
-
-_MAP = controller_map()
-_A0 = _MAP["MOTIONSCAN"].index  # %MD724..762: motion block (scan tag, arm outputs, limits)
-_A1 = _MAP["LIMELBOWACC"].index
-_B0 = _MAP["FIVESESSION"].index  # %MD812..849: 5-axis echo, wrist and gripper
-_B1 = _MAP["GRIPPERMOVING"].index
-
-
-def _md(name: str) -> int:
-    return _MAP[name.upper()].index
+    def value(self, regs: dict[str, Register], words: list[int], name: str) -> float:
+        r = regs[name.upper()]
+        k = r.address - self.address
+        return float(r.decode(words[k: k + r.count]))
 
 
 @dataclass(frozen=True)
@@ -103,8 +103,13 @@ class ChannelRecorder:
     kept only when a third read finds the scan tag unchanged (both blocks are then from one
     scan). Scans it misses are missing, never interpolated."""
 
-    def __init__(self, address: tuple[str, int]) -> None:
+    def __init__(self, address: tuple[str, int], regs: dict[str, Register]) -> None:
         self.address = address
+        self.regs = regs
+        # %MD724..762 on OpenPLC: the motion block (scan tag, arm outputs, limits)
+        self.a = _Span.of(regs, "MOTIONSCAN", "LIMELBOWACC")
+        # %MD812..849 on OpenPLC: the 5-axis echo, wrist and gripper
+        self.b = _Span.of(regs, "FIVESESSION", "GRIPPERMOVING")
         self.samples: list[Sample] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="wrist-recorder")
@@ -121,47 +126,47 @@ class ChannelRecorder:
         self._thread.join(5.0)
 
     def _run(self) -> None:
-        a_len, b_len = 2 * (_A1 - _A0 + 1), 2 * (_B1 - _B0 + 1)
+        a, b = self.a, self.b
         with PlcClient(*self.address) as c:
             while not self._stop.is_set():
-                a = c.read_holding_registers(2048 + 2 * _A0, a_len)
-                b = c.read_holding_registers(2048 + 2 * _B0, b_len)
-                tag = c.read_holding_registers(2048 + 2 * _A0, 2)
-                if tag != a[:2]:
+                wa = c.read_table(a.table, a.address, a.length)
+                wb = c.read_table(b.table, b.address, b.length)
+                tag = c.read_table(a.table, a.address, 2)
+                if tag != wa[:2]:
                     continue
-                scan = _dint(a, 0) & 0xFFFFFFFF
+                scan = int(a.value(self.regs, wa, "MOTIONSCAN"))
                 if self.samples and self.samples[-1].scan == scan:
                     time.sleep(0.001)
                     continue
 
-                self.samples.append(_decode(scan, a, b))
+                self.samples.append(self._decode(scan, wa, wb))
+
+    def _decode(self, scan: int, wa: list[int], wb: list[int]) -> Sample:
+        def ra(n: str) -> float:
+            return self.a.value(self.regs, wa, n)
+
+        def rb(n: str) -> float:
+            return self.b.value(self.regs, wb, n)
+
+        def ia(n: str) -> int:
+            return int(ra(n))
+
+        out = (ra("OutBaseDeg"), ra("OutShoulderDeg"), ra("OutElbowDeg"),
+               rb("OutWristPitchDeg"), rb("OutWristRollDeg"), rb("OutGripperDeg"))
+        vel = (ra("LimBaseVel"), ra("LimShoulderVel"), ra("LimElbowVel"),
+               rb("LimWristPitchVel"), rb("LimWristRollVel"), rb("LimGripperVel"))
+        acc = (ra("LimBaseAcc"), ra("LimShoulderAcc"), ra("LimElbowAcc"),
+               rb("LimWristPitchAcc"), rb("LimWristRollAcc"), rb("LimGripperAcc"))
+        return Sample(scan, ia("MotionKind"), bool(ia("MotionBusy")), ia("MotionErrorId"),
+                      bool(ia("MotionAtLimit")), out, vel, acc,
+                      (rb("FiveTipX"), rb("FiveTipY"), rb("FiveTipZ")),
+                      rb("FiveToolPitchDeg"))
 
     def triples(self) -> Iterator[tuple[Sample, Sample, Sample]]:
         s = self.samples
         for a, b, c in zip(s, s[1:], s[2:], strict=False):
             if b.scan - a.scan == 1 and c.scan - b.scan == 1:
                 yield a, b, c
-
-
-def _decode(scan: int, a: list[int], b: list[int]) -> Sample:
-    def ra(n: str) -> float:
-        return _real(a, _md(n) - _A0)
-
-    def rb(n: str) -> float:
-        return _real(b, _md(n) - _B0)
-
-    def ia(n: str) -> int:
-        return _dint(a, _md(n) - _A0)
-
-    out = (ra("OutBaseDeg"), ra("OutShoulderDeg"), ra("OutElbowDeg"),
-           rb("OutWristPitchDeg"), rb("OutWristRollDeg"), rb("OutGripperDeg"))
-    vel = (ra("LimBaseVel"), ra("LimShoulderVel"), ra("LimElbowVel"),
-           rb("LimWristPitchVel"), rb("LimWristRollVel"), rb("LimGripperVel"))
-    acc = (ra("LimBaseAcc"), ra("LimShoulderAcc"), ra("LimElbowAcc"),
-           rb("LimWristPitchAcc"), rb("LimWristRollAcc"), rb("LimGripperAcc"))
-    return Sample(scan, ia("MotionKind"), bool(ia("MotionBusy")), ia("MotionErrorId"),
-                  bool(ia("MotionAtLimit")), out, vel, acc,
-                  (rb("FiveTipX"), rb("FiveTipY"), rb("FiveTipZ")), rb("FiveToolPitchDeg"))
 
 
 def assert_slew_limited(rec: ChannelRecorder, min_triples: int = 10) -> None:
@@ -201,7 +206,7 @@ def test_tip_fixed_wrist_jog_keeps_the_tip(plc: ArmControllerClient,
                                            plc_address: tuple[str, int]) -> None:
     tip0 = go_to_start(plc)
     rate, acc = 20.0, 100.0
-    with ChannelRecorder(plc_address) as rec:
+    with ChannelRecorder(plc_address, plc.registers) as rec:
         assert plc.jog_wrist_start(rate, 0.0, 40.0, acc).error_id == ERR_OK
         m = plc.motion()
         assert m.kind == KIND_JOG_WRIST and m.busy
@@ -231,7 +236,7 @@ def test_dead_man_brakes_a_silent_wrist_jog(plc: ArmControllerClient,
                                             plc_address: tuple[str, int]) -> None:
     go_to_start(plc)
     rate, acc = 30.0, 150.0
-    with ChannelRecorder(plc_address) as rec:
+    with ChannelRecorder(plc_address, plc.registers) as rec:
         assert plc.jog_wrist_start(rate, 0.0, rate, acc, flange_fixed=True).error_id == ERR_OK
         started = plc.motion().scan
         outcome = plc.wait_motion(timeout_s=10.0)  # the client says nothing more
@@ -256,8 +261,8 @@ def test_dead_man_brakes_a_silent_wrist_jog(plc: ArmControllerClient,
 def test_wrist_jog_ownership_takeover_and_bad_writes(plc: ArmControllerClient,
                                                      plc_address: tuple[str, int]) -> None:
     go_to_start(plc)
-    with ChannelRecorder(plc_address) as rec, PlcClient(*plc_address) as modbus, \
-            ArmControllerClient(modbus) as other:
+    with ChannelRecorder(plc_address, plc.registers) as rec, PlcClient(*plc_address) as modbus, \
+            ArmControllerClient(modbus, flavor=plc.flavor) as other:
         assert plc.jog_wrist_start(5.0, 10.0).error_id == ERR_OK
         # another client cannot steer or stop it
         assert other.jog_wrist_update(60.0, 60.0).error_id == ERR_NOT_MOTION_OWNER
@@ -300,7 +305,7 @@ def test_wrist_jog_stops_at_the_wrist_limit(plc: ArmControllerClient,
     go_to_start(plc)
     c = plc.wrist_calibration()[0]
     upper = max(c.zero_offset_deg + c.direction * a for a in (c.min_angle_deg, c.max_angle_deg))
-    with ChannelRecorder(plc_address) as rec:
+    with ChannelRecorder(plc_address, plc.registers) as rec:
         assert plc.jog_wrist_start(60.0, 0.0, 60.0, 300.0, flange_fixed=True).error_id == ERR_OK
         keep_alive(plc, 60.0, 0.0, 2.0)
         held = plc.motion()
@@ -335,7 +340,7 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
     assert plc.set_motion_limits(JOINT_GRIPPER, 80.0, 400.0).error_id == ERR_OK
     # joint travel: zero + direction * servo range = 10 - (-70..50) = -40..80 deg
     lower, upper = 10.0 - 50.0, 10.0 + 70.0
-    with ChannelRecorder(plc_address) as rec:
+    with ChannelRecorder(plc_address, plc.registers) as rec:
         for pct in (25.0, 100.0, 0.0):
             assert plc.set_gripper(pct).error_id == ERR_OK
             wait_gripper_still(plc)
@@ -359,11 +364,15 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
                      args=(0.0, 2100.0, 900.0, -60.0, 60.0))
     assert st.error_id != ERR_OK and plc.gripper_calibration() == cal
     # a client writing NaN over the gripper's registers (%MD838..849) changes nothing: the
-    # program rewrites them from its own state every scan
+    # program rewrites them from its own state every scan (under CODESYS they are input
+    # registers, which no function code writes)
     before, word = plc.gripper(), plc.channel_words()[5]
-    first = _MAP["GRIPPERCALZERODEG"].address
-    with PlcClient(*plc_address) as raw:
-        raw.write_registers(first, [0x7FC0, 0x0000] * 12)
+    first = plc.registers["GRIPPERCALZERODEG"]
+    if plc.flavor.name == "openplc":
+        with PlcClient(*plc_address) as raw:
+            raw.write_registers(first.address, first.flavor.encode("REAL", math.nan) * 12)
+    else:
+        assert (first.table, plc.registers["GRIPPERCALMAXANGLEDEG"].table) == ("input", "input")
     plc.wait_scans(3)
     assert plc.gripper() == before and plc.gripper_calibration() == cal
     assert plc.channel_words()[5] == word

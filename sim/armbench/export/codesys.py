@@ -105,6 +105,12 @@ class Placed:
         words = max(1, SIZE_BYTES[loc.size] // 2)  # a byte shares its register
         return ("input register" if loc.area == "Q" else "holding register"), first_byte // 2, words
 
+    def registers(self) -> range:
+        """The registers of its area (holding for %I, input for %Q) it lies in: a bit lies in
+        the register of its byte, as coils and discrete inputs share the registers' data."""
+        bits = self.codesys.bits()
+        return range(bits.start // 16, (bits.stop + 15) // 16)
+
 
 def _assigned_names(pou: A.Pou) -> set[str]:
     names: set[str] = set()
@@ -169,6 +175,15 @@ def layout(prog: CheckedProgram) -> list[Placed]:
             for k, (pou, d, written, loc) in enumerate(parsed)]
 
 
+def device_registers(placed: Iterable[Placed]) -> tuple[int, int]:
+    """(holding registers, input registers) a Modbus TCP Server Device needs so that every
+    placed variable, bits included, is one of its registers (first ones at %IW0 and %QW0)."""
+    need = {"I": 1, "Q": 1}  # a device has 1..4096 of each
+    for p in placed:
+        need[p.codesys.area] = max(need[p.codesys.area], p.registers().stop)
+    return need["I"], need["Q"]
+
+
 def overlaps(locations: Iterable[tuple[str, Location]]) -> list[tuple[str, str]]:
     """Pairs of names whose CODESYS byte ranges share a bit (same area)."""
     owner: dict[tuple[str, int], str] = {}
@@ -186,12 +201,7 @@ def overlaps(locations: Iterable[tuple[str, Location]]) -> list[tuple[str, str]]
 def render_register_map(placed: list[Placed], title: str) -> str:
     """Markdown: every located variable with its OpenPLC and CODESYS location and its Modbus
     register under the CODESYS Modbus TCP Server Device."""
-    holding = [p for p in placed if p.codesys.area == "I" and p.codesys.size != "X"]
-    inputs = [p for p in placed if p.codesys.area == "Q" and p.codesys.size != "X"]
-
-    def span(ps: list[Placed]) -> int:
-        return max((p.modbus[1] + p.modbus[2] for p in ps), default=0)
-
+    holding, inputs = device_registers(placed)
     out = [
         f"# {title}: CODESYS register map",
         "",
@@ -206,16 +216,23 @@ def render_register_map(placed: list[Placed], title: str) -> str:
         "  back with function 3) and coils.",
         "",
         "Device settings this map assumes: holding registers not *Writable*, their I/O mapping",
-        f"starting at `%IW0`, at least {span(holding)} of them; input registers starting at",
-        f"`%QW0`, at least {span(inputs)} of them. A 32-bit value takes two registers, the",
+        f"starting at `%IW0`, at least {holding} of them; input registers starting at",
+        f"`%QW0`, at least {inputs} of them. A 32-bit value takes two registers, the",
         "**least significant word first** (CODESYS lays a DINT/REAL out in the CPU's byte",
         "order: x86 and the Raspberry Pi's ARM are little-endian), unlike OpenPLC's most",
         "significant word first. Not verified on a CODESYS runtime here (none can be installed",
         "on this machine); the layout itself is checked by `tests/export/test_codesys.py`.",
         "",
+        "Clients and tests speak this layout as the Modbus flavor `codesys`: armbench's pytest",
+        "plugin with `--plc-address HOST:502 --plc-flavor codesys` (the arm controller's suite:",
+        "`python -m pytest tests/modbus --plc-address HOST:502 --plc-flavor codesys`), a script",
+        "with `ArmControllerClient(PlcClient(HOST, 502), flavor=\"codesys\")`; `armbench serve",
+        "--flavor codesys` runs the program in a soft PLC serving this layout (README,",
+        "\"Testing a real PLC over Modbus\").",
+        "",
         *([f"**Warning**: more than {DEVICE_MAX_REGISTERS} registers are needed, the most a "
            "Modbus TCP Server Device offers: this program does not fit one device.", ""]
-          if max(span(holding), span(inputs)) > DEVICE_MAX_REGISTERS else []),
+          if max(holding, inputs) > DEVICE_MAX_REGISTERS else []),
         "| name | type | OpenPLC | CODESYS | Modbus table | address | words |",
         "|---|---|---|---|---|---:|---:|",
     ]

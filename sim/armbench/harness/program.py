@@ -1,6 +1,7 @@
 """A user's own ST program under test: its located variables by name, typed from their
-declarations and addressed by OpenPLC's Modbus map; a soft PLC running it on a loopback port;
-and the check that a PLC found by address runs it.
+declarations and addressed by a Modbus flavor's map (OpenPLC's by default, or the CODESYS
+variant's: ``flavor="codesys"``); a soft PLC running it on a loopback port, serving that
+flavor's layout; and the check that a PLC found by address runs it.
 
 Used by the pytest plugin (:mod:`armbench.harness.pytest_plugin`), which imports this module
 only when a test asks for one of its fixtures; usable on its own too::
@@ -16,14 +17,16 @@ given as ``signature``) with a non-zero literal initial value, e.g. ``Signature 
 UDINT := 16#7A4B0001;``, is recognised by it: a PLC whose variable at that place holds another
 value runs another program (or another version of it). A program that declares a located
 ``ScanCount`` (or ``scan_counter``) it increments once per scan gets scan-based waiting on any
-PLC, and a PLC whose counter does not move is reported as stopped.
+PLC, and a PLC whose counter does not move is reported as stopped. Under the CODESYS layout a
+signature the program never assigns sits in a holding register, whose data overwrites the
+initial value on a CODESYS PLC: it identifies nothing there, and only the scan counter is
+checked (with a warning that says so).
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-import struct
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -31,10 +34,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..softplc import modbus_map as mm
+from ..softplc.modbus_map import Flavor
+
 if TYPE_CHECKING:
     from ..compiler.symbols import CheckedProgram, VarSym
+    from ..softplc.codesys_device import CodesysDevice
     from ..softplc.modbus_client import PlcClient
-    from ..softplc.modbus_server import ModbusServer
     from ..softplc.scan import SoftPlc
 
 Value = bool | int | float
@@ -42,13 +48,6 @@ Value = bool | int | float
 DEFAULT_SIGNATURE = "Signature"
 DEFAULT_SCAN_COUNTER = "ScanCount"
 
-# ST type -> (struct format of its bit pattern, most significant word first). BOOL travels as
-# a coil or discrete input, not in registers.
-_FORMATS: dict[str, str] = {
-    "INT": ">h", "UINT": ">H", "WORD": ">H",
-    "DINT": ">i", "UDINT": ">I", "DWORD": ">I", "REAL": ">f",
-    "LINT": ">q", "ULINT": ">Q", "LWORD": ">Q", "LREAL": ">d",
-}
 _INTEGER_TYPES = frozenset({"INT", "UINT", "WORD", "DINT", "UDINT", "DWORD", "LINT", "ULINT",
                             "LWORD"})
 # FC16 carries at most 123 registers (Modbus) and OpenPLC answers FC3 with at most 127.
@@ -67,37 +66,48 @@ class UnknownVariable(ProgramError, KeyError):
 
 
 class ReadOnlyVariable(ProgramError):
-    """An input (%IX, %IW): Modbus reads it, only the PLC's I/O writes it."""
+    """Modbus reads it, nothing over Modbus writes it: an input (%IX, %IW) under OpenPLC, whose
+    I/O writes it; an output of the program (an input register or discrete input) under
+    CODESYS."""
 
 
 @dataclass(frozen=True)
 class Variable:
-    """One located variable as seen over Modbus (OpenPLC's map, docs/modbus-parity.md)."""
+    """One located variable as seen over Modbus, on a flavor's server (OpenPLC's map,
+    docs/modbus-parity.md, or the CODESYS variant's layout)."""
 
     name: str
     st_type: str  # elementary type, upper case
-    location: str  # "%MD2"
+    location: str  # where the flavor has it: "%MD2" (OpenPLC), "%QD2" (CODESYS)
     table: str  # "coil" | "discrete" | "input" | "holding"
     address: int  # first Modbus address (0-based)
     count: int  # bits or registers it takes
     instance: str | None  # the program instance declaring it; None for a global
     description: str  # the comment on its declaration line
+    flavor: Flavor = mm.OPENPLC
+    declared: str = ""  # the address in the source when the flavor moved it ("": location)
+
+    @property
+    def source_location(self) -> str:
+        """The address the program declares."""
+        return self.declared or self.location
 
     @property
     def writable(self) -> bool:
-        """Coils (%QX) and holding registers (%QW, %MW, %MD, %ML); inputs are read-only."""
+        """Coils and holding registers (OpenPLC: %QX, %QW, %MW, %MD, %ML; CODESYS: what the
+        program never assigns); the other tables are read-only."""
         return self.table in ("coil", "holding")
 
     def encode(self, value: Value) -> list[int]:
-        """The registers of ``value`` in OpenPLC's word order; TypeError/ValueError when the
-        value does not fit the variable's type."""
-        fmt = self._format()
+        """The registers of ``value`` in the flavor's word order; TypeError/ValueError when
+        the value does not fit the variable's type."""
+        code = self._code()
         if self.st_type in _INTEGER_TYPES:
             if isinstance(value, bool) or not isinstance(value, int):
                 raise TypeError(f"{self.name} is {self.st_type}: give an int, not "
                                 f"{type(value).__name__} {value!r}")
             bits = 16 * self.count
-            low, high = ((-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if fmt[1].islower()
+            low, high = ((-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if code.islower()
                          else (0, (1 << bits) - 1))
             if not low <= value <= high:
                 raise ValueError(f"{self.name} is {self.st_type} ({low}..{high}): {value} "
@@ -109,19 +119,18 @@ class Variable:
             if (self.st_type == "REAL" and math.isfinite(value)
                     and abs(value) > 3.4028234663852886e38):
                 raise ValueError(f"{self.name} is REAL: {value} is beyond its range")
-        data = struct.pack(fmt, value)
-        return list(struct.unpack(f">{self.count}H", data))
+        return self.flavor.encode(self.st_type, value)
 
     def decode(self, words: Sequence[int]) -> Value:
-        value: Value = struct.unpack(self._format(), struct.pack(f">{self.count}H", *words))[0]
-        return value
+        self._code()
+        return self.flavor.decode(self.st_type, list(words))
 
-    def _format(self) -> str:
-        fmt = _FORMATS.get(self.st_type)
-        if fmt is None or self.table in ("coil", "discrete"):
+    def _code(self) -> str:
+        code = mm.struct_code(self.st_type)
+        if code is None or self.table in ("coil", "discrete"):
             raise TypeError(f"{self.name} ({self.st_type} at {self.location}) has no Modbus "
-                            "register encoding that OpenPLC and the bench share")
-        return fmt
+                            "register encoding that the PLCs and the bench share")
+        return code
 
 
 @dataclass(frozen=True)
@@ -130,6 +139,13 @@ class Signature:
 
     variable: Variable
     value: int
+
+    @property
+    def readable(self) -> bool:
+        """The PLC shows the initial value over Modbus: always under OpenPLC (the variable is
+        the register); under CODESYS only in the %Q area (the program assigns it), as the
+        holding registers' data overwrites the %I variables, initial values and all."""
+        return not (self.variable.flavor == mm.CODESYS and self.variable.writable)
 
 
 @dataclass(frozen=True)
@@ -147,6 +163,7 @@ class PlcProgram:
     scan_interval_ns: int
     notes: tuple[str, ...] = ()  # library files left out, and why
     checked: CheckedProgram | None = field(default=None, repr=False, compare=False)
+    flavor: Flavor = mm.OPENPLC  # whose Modbus layout the variables' tables and addresses are
 
     @property
     def name(self) -> str:
@@ -155,13 +172,14 @@ class PlcProgram:
 
     @classmethod
     def load(cls, files: Sequence[str | Path], *, library: bool = True,
-             signature: str | None = None, scan_counter: str | None = None) -> PlcProgram:
+             signature: str | None = None, scan_counter: str | None = None,
+             flavor: str | Flavor = mm.OPENPLC) -> PlcProgram:
         """Check ``files`` (with the armbench ST library, as ``armbench run`` does, unless
-        ``library`` is False) and read the map from their declarations. ``signature`` and
-        ``scan_counter`` name those variables when they are not called ``Signature`` and
-        ``ScanCount``; a name given here must exist. Raises CompileFailed with the
-        diagnostics when the files do not check, ProgramError when the program cannot be
-        tested over Modbus."""
+        ``library`` is False) and read the map from their declarations, as ``flavor``'s
+        server lays them out. ``signature`` and ``scan_counter`` name those variables when
+        they are not called ``Signature`` and ``ScanCount``; a name given here must exist.
+        Raises CompileFailed with the diagnostics when the files do not check, ProgramError
+        when the program cannot be tested over Modbus."""
         from ..compiler.driver import expand
 
         given = tuple(expand(files))
@@ -172,25 +190,26 @@ class PlcProgram:
             raise ProgramError(f"no such file: {', '.join(missing)}")
         checked, compiled, notes = _analysed(given, library)
         return cls.from_checked(checked, given, compiled, notes=notes, signature=signature,
-                                scan_counter=scan_counter)
+                                scan_counter=scan_counter, flavor=flavor)
 
     @classmethod
     def from_checked(cls, checked: CheckedProgram, given: Sequence[Path],
                      compiled: Sequence[Path], *, notes: Sequence[str] = (),
-                     signature: str | None = None,
-                     scan_counter: str | None = None) -> PlcProgram:
+                     signature: str | None = None, scan_counter: str | None = None,
+                     flavor: str | Flavor = mm.OPENPLC) -> PlcProgram:
         from ..registermap import program_map
 
         if checked.config is None or not checked.config.instances:
             raise ProgramError("the program has no CONFIGURATION with a program instance: a "
                                "PLC runs CONFIGURATION Config0 / RESOURCE Res0 / TASK / "
                                "PROGRAM ... WITH")
-        pmap = program_map(checked)
+        fl = mm.flavor(flavor)
+        pmap = program_map(checked, fl)
         spelled = Counter(reg.name.upper() for reg in pmap.registers)
         variables: dict[str, Variable] = {}
         for reg, inst in zip(pmap.registers, pmap.instances, strict=True):
             var = Variable(reg.name, reg.st_type.upper(), reg.location, reg.table, reg.address,
-                           reg.count, inst, reg.description)
+                           reg.count, inst, reg.description, fl, reg.declared)
             if spelled[reg.name.upper()] == 1:  # else reached as INSTANCE.NAME only
                 variables[reg.name.upper()] = var
             if inst is not None:
@@ -203,7 +222,20 @@ class PlcProgram:
         counter = _scan_counter(variables, scan_counter)
         return cls(tuple(given), tuple(compiled), variables,
                    {u.name.upper(): u.location for u in pmap.unreachable}, sig, counter,
-                   task.name, task.interval_ns, tuple(notes), checked)
+                   task.name, task.interval_ns, tuple(notes), checked, fl)
+
+    def with_flavor(self, flavor: str | Flavor) -> PlcProgram:
+        """The same program as ``flavor``'s server lays it out."""
+        fl = mm.flavor(flavor)
+        if fl == self.flavor:
+            return self
+        if self.checked is None:
+            raise ProgramError("the program was not checked: build it with PlcProgram.load")
+        return PlcProgram.from_checked(
+            self.checked, self.given, self.files, notes=self.notes,
+            signature=None if self.signature is None else self.signature.variable.name,
+            scan_counter=None if self.scan_counter is None else self.scan_counter.name,
+            flavor=fl)
 
     def names(self) -> list[str]:
         """Every located variable Modbus reaches, once, in declaration order: by its name, or
@@ -225,9 +257,12 @@ class PlcProgram:
         if var is not None:
             return var
         if key in self.unreachable:
-            raise UnknownVariable(
-                f"{name} is located at {self.unreachable[key]}, which OpenPLC does not serve "
-                "over Modbus (it serves %IX %QX %IW %QW %MW %MD %ML)")
+            server = ("OpenPLC does not serve over Modbus (it serves %IX %QX %IW %QW %MW %MD "
+                      "%ML)" if self.flavor == mm.OPENPLC else
+                      f"the {self.flavor.title} layout does not serve over Modbus (it places "
+                      "only the programs' own located variables)")
+            raise UnknownVariable(f"{name} is located at {self.unreachable[key]}, which "
+                                  f"{server}")
         owners = [f"{v.instance}.{v.name}" for k, v in self.variables.items()
                   if k.endswith(f".{key}")]
         if owners:
@@ -274,9 +309,10 @@ def _signature(checked: CheckedProgram, variables: Mapping[str, Variable],
         raise ProgramError(f"the signature {var.name} is {var.st_type}: declare it as an "
                            "integer (UDINT, DINT, ...) at a %MD, %MW, %QW or %ML location")
     init = None if sym is None else sym.init
+    where = var.source_location
     if not isinstance(init, Literal) or init.kind != "int" or int(init.value) == 0:
-        raise ProgramError(f"the signature {var.name} ({var.location}) needs a non-zero "
-                           f"literal initial value, e.g. `{var.name} AT {var.location} : "
+        raise ProgramError(f"the signature {var.name} ({where}) needs a non-zero "
+                           f"literal initial value, e.g. `{var.name} AT {where} : "
                            f"{var.st_type} := 16#5EED0001;` (0 is what an empty PLC reads)")
     return Signature(var, int(init.value))
 
@@ -371,9 +407,7 @@ class PlcVariables(Mapping[str, Value]):
         for name, value in items:
             var = self.program.variable(name)
             if not var.writable:
-                raise ReadOnlyVariable(
-                    f"{var.name} at {var.location} is an input: Modbus reads it, the PLC's I/O "
-                    "writes it (on the soft PLC, ProgramPlc.set_input writes it)")
+                raise ReadOnlyVariable(_read_only(var))
             if var.table == "coil":
                 if not isinstance(value, bool):
                     raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
@@ -445,6 +479,17 @@ class PlcVariables(Mapping[str, Value]):
             raise ProgramError(f"the soft PLC running {self.program.name} is in FAULT: {reason}")
 
 
+def _read_only(var: Variable) -> str:
+    """Why ``var`` cannot be written over Modbus, and what writes it."""
+    if var.flavor == mm.OPENPLC:
+        return (f"{var.name} at {var.location} is an input: Modbus reads it, the PLC's I/O "
+                "writes it (on the soft PLC, ProgramPlc.set_input writes it)")
+    kind = "a discrete input" if var.table == "discrete" else "an input register"
+    return (f"{var.name} ({var.source_location}) is an output of the program in the "
+            f"{var.flavor.title} layout, {var.location}: {kind}, which Modbus reads and only "
+            "the program writes")
+
+
 def _runs(items: Sequence[tuple[int, list[Any]]],
           limit: int = 1968) -> Iterator[tuple[int, list[Any]]]:
     """Values at addresses merged into runs of neighbours (at most ``limit`` long)."""
@@ -462,11 +507,12 @@ def _runs(items: Sequence[tuple[int, list[Any]]],
 
 
 def check_identity(client: PlcClient, program: PlcProgram, timeout_s: float = 3.0) -> str | None:
-    """None when the PLC on ``client`` runs ``program`` as far as its signature and scan
-    counter tell (nothing to tell: None); else why not, in one line."""
+    """None when the PLC on ``client`` runs ``program`` as far as its signature (where the
+    flavor shows it: :attr:`Signature.readable`) and scan counter tell (nothing to tell:
+    None); else why not, in one line. A Modbus exception reply raises ModbusError."""
     v = PlcVariables(client, program)
     sig = program.signature
-    if sig is not None:
+    if sig is not None and sig.readable:
         seen = v.read_variable(sig.variable)
         if seen != sig.value:
             return (f"runs another program (or another version of {program.name}): "
@@ -481,6 +527,32 @@ def check_identity(client: PlcClient, program: PlcProgram, timeout_s: float = 3.
                 return (f"does not scan {program.name}: its scan counter {counter.name} "
                         f"({counter.location}) stays at {first} for {timeout_s:g} s")
             time.sleep(min(0.01, program.scan_interval_ns / 2e9))
+    return None
+
+
+def other_flavor(client: PlcClient, program: PlcProgram,
+                 timeout_s: float = 3.0) -> Flavor | None:
+    """The flavor other than ``program``'s whose layout the PLC on ``client`` shows the program
+    in (for a session that speaks the wrong one): its signature matches there and its scan
+    counter moves, whichever of the two it can be told by; None when no other flavor does, or
+    nothing tells (no readable signature, no scan counter)."""
+    from ..softplc.modbus_client import ModbusError, ModbusIoError
+
+    # A quick look: a counter that moves at all moves within a few dozen scans; the session's
+    # own flavor has had the whole timeout already.
+    look_s = min(timeout_s, max(0.5, 20 * program.scan_interval_ns / 1e9))
+    for fl in mm.FLAVORS.values():
+        if fl == program.flavor:
+            continue
+        other = program.with_flavor(fl)
+        sig = other.signature
+        if (sig is None or not sig.readable) and other.scan_counter is None:
+            continue
+        try:
+            if check_identity(client, other, look_s) is None:
+                return fl
+        except (ModbusError, ModbusIoError):
+            continue
     return None
 
 
@@ -503,6 +575,7 @@ class ProgramPlc:
     port: int
     program: PlcProgram
     soft: SoftPlc | None = None
+    device: CodesysDevice | None = None  # the soft PLC's Modbus device (CODESYS layout)
     _clients: list[PlcVariables] = field(default_factory=list, repr=False)
 
     @property
@@ -539,21 +612,28 @@ class ProgramPlc:
         return None if info is None else f"{info.location}: {info.message}"
 
     def set_input(self, name: str, value: Value) -> None:
-        """Soft PLC only: write an input (%IX, %IW), as the PLC's I/O would, between scans."""
+        """Soft PLC only: write an input (%IX, %IW), as the PLC's I/O would, between scans
+        (under the CODESYS layout, where inputs are holding registers and coils: into the
+        Modbus device's data, which the next scan copies in)."""
         var = self.program.variable(name)
         plc = self._soft()
-        if var.table == "discrete":
-            if not isinstance(value, bool):
-                raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
+        if not var.source_location.upper().startswith("%I"):
+            raise ProgramError(f"{var.name} at {var.source_location} is not an input: write it "
+                               "over Modbus (plc_vars[name] = value)")
+        if var.table in ("coil", "discrete") and not isinstance(value, bool):
+            raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
+        if self.device is not None:
+            if var.table == "coil":
+                self.device.store_coil(var.address, bool(value))
+            else:
+                self.device.store_registers(var.address, var.encode(value))
+        elif var.table == "discrete":
             with plc.lock:
                 plc.image.ix[var.address] = int(value)
-        elif var.table == "input":
+        else:
             (word,) = var.encode(value)
             with plc.lock:
                 plc.image.iw[var.address] = word
-        else:
-            raise ProgramError(f"{var.name} at {var.location} is not an input: write it over "
-                               "Modbus (plc_vars[name] = value)")
 
     def _soft(self) -> SoftPlc:
         if self.soft is None:
@@ -566,23 +646,25 @@ class ProgramPlc:
 def serve_program(program: PlcProgram, host: str = "127.0.0.1",
                   port: int = 0) -> Iterator[ProgramPlc]:
     """Compile ``program``, run it in a soft PLC (real-time thread) with its Modbus server on
-    ``host:port`` (0: a free port); stops both on exit."""
+    ``host:port`` (0: a free port), serving the program's flavor's layout; stops both on
+    exit."""
     from ..compiler.build import build
     from ..compiler.emit_c import emit
     from ..compiler.ffi import Module
     from ..softplc.loader import LoadedProgram
-    from ..softplc.modbus_server import ModbusServer
-    from ..softplc.scan import SoftPlc
+    from ..softplc.serving import soft_plc
 
     checked = program.checked
     if checked is None:
         raise ProgramError("the program was not checked: build it with PlcProgram.load")
     unit = emit(checked)
     loaded = LoadedProgram(Module(checked, unit, build(unit).path))
-    plc = SoftPlc(loaded)
-    server: ModbusServer = ModbusServer(loaded.image, plc.lock, host=host, port=port)
+    try:
+        plc, server = soft_plc(loaded, program.flavor, host=host, port=port)
+    except ValueError as exc:  # a variable the CODESYS layout cannot bind to the image
+        raise ProgramError(str(exc)) from exc
     server.start()
-    running = ProgramPlc(host, server.port, program, plc)
+    running = ProgramPlc(host, server.port, program, plc, server.device)
     try:
         plc.start()
         try:

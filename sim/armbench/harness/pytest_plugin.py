@@ -8,7 +8,7 @@ pymodbus are loaded by the first fixture that needs them.
 Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in the ini file):
 
 - ``plc_program`` (session): the program, checked once: its located variables by name, typed
-  from their declarations and addressed by OpenPLC's Modbus map.
+  from their declarations and addressed by the Modbus map of ``--plc-flavor``.
 - ``program_plc`` (module): the PLC running it; by default a soft PLC started on a free
   loopback port (one per test module and xdist worker), with ``--plc-address HOST:PORT`` a
   real one, checked once per session: a PLC that does not answer, answers with another
@@ -16,7 +16,8 @@ Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in
 - ``plc_vars``: typed access by name, ``plc_vars["Level"] = 12.5``, ``plc_vars.wait_scans(1)``.
 - ``modbus``: a plain :class:`~armbench.softplc.modbus_client.PlcClient` connected to it.
 - ``soft_plc``: a factory, ``soft_plc("a.st", library=False)``, for tests that start soft PLCs
-  of their own; each is stopped at the end of the test.
+  of their own (``flavor="codesys"``: serving the CODESYS layout); each is stopped at the end
+  of the test.
 
 The arm controller (``plc_project/Controller.st``):
 
@@ -39,9 +40,16 @@ The arm controller (``plc_project/Controller.st``):
   ``armbench sweep: N points in T s = R points/s on W workers`` at the end, T being the time
   from the first sweep test's start to the last one's end (PLC start-up not included).
 
+``--plc-flavor openplc|codesys`` (or ``plc_flavor`` in the ini file; ``plc_flavor`` is also a
+session fixture) says which register layout the PLC serves: OpenPLC's map (the default) or the
+CODESYS variant's (plc_project/codesys/register-map.md: what the program writes in input
+registers, what clients write in holding registers and coils, 32-bit values least significant
+word first). The soft PLCs the fixtures start serve that layout; every client speaks it.
+
 A real PLC that does not answer Modbus, or does not run the program the fixtures expect (the
 controller: it does not answer a Hello command; your program: see ``plc_program``), ends the
-session with one line naming host:port and the reason (pytest exit code 4).
+session with one line naming host:port and the reason (pytest exit code 4); when it runs it in
+the other flavor's layout, the line says so and names the option that fits.
 """
 
 from __future__ import annotations
@@ -59,6 +67,8 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from .. import argtypes
+
+FLAVORS = ("openplc", "codesys")  # armbench.softplc.modbus_map.FLAVORS, not imported: cheap
 
 if TYPE_CHECKING:  # imported by the fixtures that need them: see the module docstring
     from ..controller_client import ArmControllerClient, MotionRecorder
@@ -82,6 +92,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="real PLCs, one per pytest-xdist worker (worker N takes the N-th)")
     group.addoption("--plc-share", action="store_true",
                     help="let more xdist workers than --plc-address entries share the PLCs")
+    group.addoption("--plc-flavor", choices=FLAVORS, default=None,
+                    help="the PLC's Modbus register layout: openplc (OpenPLC's map, the "
+                         "default) or codesys (the CODESYS variant's, "
+                         "plc_project/codesys/register-map.md); the soft PLCs serve it")
     group.addoption("--plc-program", nargs="+", action="extend", default=None,
                     metavar="FILE.st",
                     help="your ST program (files or folders) for the plc_program, "
@@ -99,6 +113,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--sweep-progress", choices=("auto", "bar", "off"), default="auto",
                     help="progress bar of the points tests report with record_points "
                          "(auto: when stderr is a terminal)")
+    parser.addini("plc_flavor", default="",
+                  help="the PLC's Modbus register layout, openplc or codesys (--plc-flavor)")
     parser.addini("plc_program", type="paths", default=[],
                   help="your ST program's files, relative to this ini file (--plc-program)")
     parser.addini("plc_no_library", type="bool", default=False,
@@ -123,6 +139,22 @@ def plc_addresses(config: pytest.Config) -> tuple[tuple[str, int], ...]:
             raise pytest.UsageError("--plc-port needs --plc-host (or use --plc-address)")
         return ()
     return ((host, 502 if port is None else port),)
+
+
+def flavor_name(config: pytest.Config) -> str:
+    """--plc-flavor, else the ini file's plc_flavor, else "openplc"."""
+    given: str | None = config.getoption("--plc-flavor")
+    if given:
+        return given
+    ini = str(config.getini("plc_flavor")).strip().lower()
+    if ini and ini not in FLAVORS:
+        raise pytest.UsageError(f"plc_flavor (ini) is {ini!r}: choose {' or '.join(FLAVORS)}")
+    return ini or "openplc"
+
+
+def _flavor_hint(found: str) -> str:
+    return f"add --plc-flavor {found}" if found != "openplc" else \
+        "leave out --plc-flavor (or give --plc-flavor openplc)"
 
 
 @dataclass(frozen=True)
@@ -186,6 +218,7 @@ def _xdist_workers(config: pytest.Config) -> int:
 
 def pytest_configure(config: pytest.Config) -> None:
     addresses = plc_addresses(config)
+    flavor_name(config)  # a bad ini value is a usage error before any test
     program_options(config)  # a missing --plc-program file is a usage error before any test
     if hasattr(config, "workerinput"):
         return
@@ -207,7 +240,8 @@ def pytest_report_header(config: pytest.Config) -> list[str]:
     addresses = plc_addresses(config)
     where = (f"the PLC at {', '.join(f'{h}:{p}' for h, p in addresses)}" if addresses
              else "a soft PLC per test module")
-    return [f"armbench: program {', '.join(p.name for p in opts.files)} on {where}"]
+    return [f"armbench: program {', '.join(p.name for p in opts.files)} on {where} "
+            f"({flavor_name(config)} layout)"]
 
 
 def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
@@ -234,24 +268,69 @@ def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | Non
     return None
 
 
-def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
-    """None when the PLC at host:port runs the arm controller: it answers a Hello command
-    (claims a mailbox, then gives it back), which needs the controller's register map and its
-    CRC-32 check words; else the reason, in one line. The tests would write commands to this
-    PLC anyway; this writes one Hello and one Close."""
+def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
+                     flavor: str = "openplc") -> str | None:
+    """None when the PLC at host:port runs the arm controller in ``flavor``'s register
+    layout: it answers a Hello command (claims a mailbox, then gives it back), which needs the
+    controller's register map and its CRC-32 check words; else the reason, in one line. When
+    it answers in another flavor's layout instead, the line names that flavor. The tests would
+    write commands to this PLC anyway; this writes one Hello and one Close (and, when the
+    first fails, one Hello in the other layout)."""
+    from ..softplc.modbus_map import CODESYS
+
+    reason = _hello(host, port, timeout_s, flavor)
+    if reason is None or reason.startswith("has no free mailbox"):
+        return reason
+    for other in FLAVORS:
+        if other != flavor and _counts_scans(host, port, timeout_s, other) \
+                and _hello(host, port, timeout_s, other) is None:
+            layout = "the CODESYS variant's layout" if other == CODESYS.name else \
+                "OpenPLC's register map"
+            return (f"runs the arm controller in {layout}, not the {flavor} one this session "
+                    f"speaks (--plc-flavor {flavor}): {_flavor_hint(other)}")
+    load = ("import plc_project/codesys/arm_controller_codesys.xml, its Modbus TCP Server "
+            "Device set up as plc_project/codesys/register-map.md says" if flavor == CODESYS.name
+            else "upload plc_project/openplc/arm_controller.st")
+    return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
+            f"command within {timeout_s:g} s ({load})")
+
+
+def _counts_scans(host: str, port: int, timeout_s: float, flavor: str,
+                  within_s: float = 0.5) -> bool:
+    """The controller's ScanCount, read where ``flavor`` has it, moves within ``within_s``:
+    a quick look before a Hello (which waits ``timeout_s`` for an answer that never comes
+    from a PLC speaking another layout)."""
+    from ..controller_client import ArmControllerClient
+    from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
+
+    try:
+        with PlcClient(host, port, timeout_s=timeout_s) as client:
+            ctl = ArmControllerClient(client, timeout_s=timeout_s, flavor=flavor)
+            first = ctl.scan_count()
+            deadline = time.monotonic() + within_s
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+                if ctl.scan_count() != first:
+                    return True
+    except (ModbusError, ModbusIoError):
+        pass
+    return False
+
+
+def _hello(host: str, port: int, timeout_s: float, flavor: str) -> str | None:
+    """None when a Hello in ``flavor``'s layout is answered, else why not."""
     from ..controller_client import ArmControllerClient, HandshakeError, NoFreeMailbox
     from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
 
     try:
         with PlcClient(host, port, timeout_s=timeout_s) as client, \
-                ArmControllerClient(client, timeout_s=timeout_s) as ctl:
+                ArmControllerClient(client, timeout_s=timeout_s, flavor=flavor) as ctl:
             ctl.open()
     except NoFreeMailbox:
         return ("has no free mailbox of the arm controller, or does not run it: every "
                 "answer block shows another session")
-    except (HandshakeError, ModbusError, ModbusIoError):
-        return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
-                f"command within {timeout_s:g} s (upload plc_project/openplc/arm_controller.st)")
+    except (HandshakeError, ModbusError, ModbusIoError) as exc:
+        return str(exc)
     return None
 
 
@@ -285,36 +364,48 @@ def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
     if found is None:
         return None
     host, port, option = found
-    reason = controller_probe(host, port)
+    reason = controller_probe(host, port, flavor=flavor_name(request.config))
     if reason is not None:
         pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
                     returncode=pytest.ExitCode.USAGE_ERROR)
     return host, port
 
 
+@pytest.fixture(scope="session")
+def plc_flavor(request: pytest.FixtureRequest) -> str:
+    """The register layout of the PLC under test, "openplc" or "codesys" (``--plc-flavor``,
+    ``plc_flavor`` in the ini file): give it to the clients a test makes itself,
+    ``ArmControllerClient(modbus, flavor=plc_flavor)``."""
+    return flavor_name(request.config)
+
+
 @pytest.fixture(scope="module")
-def plc_address(_real_plc: tuple[str, int] | None) -> Iterator[tuple[str, int]]:
+def plc_address(_real_plc: tuple[str, int] | None,
+                plc_flavor: str) -> Iterator[tuple[str, int]]:
     """``(host, port)`` of the PLC running the arm controller: this worker's
     ``--plc-address`` entry (checked once per session), else a soft PLC running the packaged
-    controller on a free loopback port, started for the test module."""
+    controller on a free loopback port, started for the test module, serving the
+    ``plc_flavor`` layout."""
     if _real_plc is not None:
         yield _real_plc
         return
     from ..demo import serve_controller
 
-    with serve_controller() as running:
+    with serve_controller(flavor=plc_flavor) as running:
         yield running.host, running.port
 
 
 @pytest.fixture
-def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
-    """An ArmControllerClient of the controller at ``plc_address``, on a connection of its
-    own; it claims a mailbox at its first command and gives it back after the test."""
+def plc(plc_address: tuple[str, int], plc_flavor: str) -> Iterator[ArmControllerClient]:
+    """An ArmControllerClient of the controller at ``plc_address`` (in the ``plc_flavor``
+    layout), on a connection of its own; it claims a mailbox at its first command and gives
+    it back after the test."""
     from ..controller_client import ArmControllerClient
     from ..softplc.modbus_client import PlcClient
 
     host, port = plc_address
-    with PlcClient(host, port) as client, ArmControllerClient(client) as ctl:
+    with PlcClient(host, port) as client, \
+            ArmControllerClient(client, flavor=plc_flavor) as ctl:
         # One request before the test starts: a PLC that takes new connections one at a time
         # (OpenPLC's accept loop) has then taken this one before the test opens another.
         ctl.scan_count()
@@ -322,7 +413,8 @@ def plc(plc_address: tuple[str, int]) -> Iterator[ArmControllerClient]:
 
 
 @pytest.fixture
-def motion_recorder(plc_address: tuple[str, int]) -> Iterator[Callable[[], MotionRecorder]]:
+def motion_recorder(plc_address: tuple[str, int],
+                    plc_flavor: str) -> Iterator[Callable[[], MotionRecorder]]:
     """A factory of MotionRecorders of the controller at ``plc_address``: each records the
     motion registers once per scan (one FC3 read tagged with the PLC's ScanCount) on its own
     connection, from ``start()`` to ``stop()``; any still recording are stopped after the
@@ -332,7 +424,7 @@ def motion_recorder(plc_address: tuple[str, int]) -> Iterator[Callable[[], Motio
     made: list[MotionRecorder] = []
 
     def make() -> MotionRecorder:
-        rec = MotionRecorder(*plc_address)
+        rec = MotionRecorder(*plc_address, flavor=plc_flavor)
         made.append(rec)
         return rec
 
@@ -365,7 +457,7 @@ def record_points(request: pytest.FixtureRequest) -> Iterator[Callable[..., None
 
 
 def _load_or_exit(files: Sequence[Path], *, library: bool, signature: str | None,
-                  scan_counter: str | None, option: str) -> PlcProgram:
+                  scan_counter: str | None, option: str, flavor: str) -> PlcProgram:
     """The checked program; its diagnostics (or why it cannot be tested over Modbus) end the
     session instead of failing every test with them."""
     from ..compiler.diagnostics import CompileFailed
@@ -373,7 +465,7 @@ def _load_or_exit(files: Sequence[Path], *, library: bool, signature: str | None
 
     try:
         return PlcProgram.load(files, library=library, signature=signature,
-                               scan_counter=scan_counter)
+                               scan_counter=scan_counter, flavor=flavor)
     except CompileFailed as exc:
         hint = ("\narmbench: note: compiled together with the armbench ST library; "
                 "--plc-no-library (plc_no_library = true in the ini file) leaves it out"
@@ -397,7 +489,8 @@ def plc_program(request: pytest.FixtureRequest) -> PlcProgram:
                     "need your program: --plc-program FILE.st (or plc_program = FILE.st in "
                     "the ini file)", returncode=pytest.ExitCode.USAGE_ERROR)
     return _load_or_exit(opts.files, library=opts.library, signature=opts.signature,
-                         scan_counter=opts.scan_counter, option=opts.option)
+                         scan_counter=opts.scan_counter, option=opts.option,
+                         flavor=flavor_name(request.config))
 
 
 @pytest.fixture(scope="session")
@@ -411,22 +504,45 @@ def _real_program_plc(request: pytest.FixtureRequest,
         return None
     host, port, option = found
     from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
-    from .program import check_identity
+    from .program import check_identity, other_flavor
 
     try:
         with PlcClient(host, port, timeout_s=PROBE_TIMEOUT_S) as client:
-            reason = check_identity(client, plc_program, PROBE_TIMEOUT_S)
-    except (ModbusError, ModbusIoError) as exc:
+            try:
+                reason = check_identity(client, plc_program, PROBE_TIMEOUT_S)
+            except ModbusError as exc:
+                reason = (f"answers Modbus, but reading {plc_program.name}'s variables fails "
+                          f"({exc})")
+            if reason is not None:
+                layout = other_flavor(client, plc_program, PROBE_TIMEOUT_S)
+                if layout is not None:
+                    reason = (f"serves {plc_program.name} in the {layout.title} layout, not the "
+                              f"{plc_program.flavor.title} one this session speaks "
+                              f"(--plc-flavor {plc_program.flavor.name}): "
+                              f"{_flavor_hint(layout.name)}")
+    except ModbusIoError as exc:
         reason = f"answers Modbus, but reading {plc_program.name}'s variables fails ({exc})"
     if reason is not None:
         pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
                     returncode=pytest.ExitCode.USAGE_ERROR)
-    if plc_program.signature is None:
+    sig = plc_program.signature
+    if sig is None:
         warnings.warn(ProgramIdentityWarning(
             f"{plc_program.name} declares no Signature variable: nothing checks that the PLC "
             f"at {host}:{port} runs it (declare e.g. `Signature AT %MD0 : UDINT := "
             "16#5EED0001;`)"), stacklevel=1)
+    elif not sig.readable:
+        warnings.warn(ProgramIdentityWarning(
+            f"{sig.variable.name} cannot identify {plc_program.name} on the PLC at "
+            f"{host}:{port}: the program never assigns it, so the CODESYS variant puts it in "
+            f"%I ({sig.variable.location}, a holding register), where the Modbus device's "
+            "data overwrites its initial value; assign it in the program "
+            f"(`{sig.variable.name} := {_hex(sig.value)};`) to move it to %Q"), stacklevel=1)
     return host, port
+
+
+def _hex(value: int) -> str:
+    return f"16#{value:X}" if value >= 0 else str(value)
 
 
 class ProgramIdentityWarning(pytest.PytestWarning):
@@ -477,17 +593,19 @@ def plc_vars(program_plc: ProgramPlc) -> Iterator[PlcVariables]:
 
 @dataclass
 class SoftPlcFactory:
-    """``soft_plc(*files, library=True, signature=None, scan_counter=None)``: compile the
-    files and start a soft PLC running them; returns its ProgramPlc."""
+    """``soft_plc(*files, library=True, signature=None, scan_counter=None,
+    flavor="openplc")``: compile the files and start a soft PLC running them, serving
+    ``flavor``'s register layout; returns its ProgramPlc."""
 
     stack: contextlib.ExitStack[bool | None] = field(default_factory=contextlib.ExitStack)
 
     def __call__(self, *files: str | Path, library: bool = True,
-                 signature: str | None = None, scan_counter: str | None = None) -> ProgramPlc:
+                 signature: str | None = None, scan_counter: str | None = None,
+                 flavor: str = "openplc") -> ProgramPlc:
         from .program import PlcProgram, serve_program
 
         program = PlcProgram.load(files, library=library, signature=signature,
-                                  scan_counter=scan_counter)
+                                  scan_counter=scan_counter, flavor=flavor)
         return self.stack.enter_context(serve_program(program))
 
 

@@ -8,6 +8,7 @@ variable itself, as on the real runtime.
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Final
@@ -51,6 +52,34 @@ def _check_native_formats() -> None:
 _check_native_formats()
 
 NATIVE_BYTEORDER: Final = sys.byteorder
+
+# (area, size letter) -> (offset of the area, bytes per element); bits are one byte each.
+_AREAS: Final = {("I", "X"): (IX_OFFSET, 1), ("Q", "X"): (QX_OFFSET, 1),
+                 ("I", "W"): (IW_OFFSET, 2), ("Q", "W"): (QW_OFFSET, 2),
+                 ("M", "W"): (MW_OFFSET, 2), ("M", "D"): (MD_OFFSET, 4),
+                 ("M", "L"): (ML_OFFSET, 8)}
+_LOCATION = re.compile(r"^%([IQM])([XWDL])(\d+)(?:\.([0-7]))?$", re.IGNORECASE)
+
+
+def image_span(location: str) -> tuple[int, int]:
+    """(byte offset in the image, bytes) of the variable at a direct address; a BOOL takes one
+    byte (0 or 1). ValueError for an address the image does not hold (%MX, %IB, %QD, ...: the
+    compiled program keeps those in storage of its own)."""
+    m = _LOCATION.match(location.strip())
+    found = None if m is None else _AREAS.get((m.group(1).upper(), m.group(2).upper()))
+    if m is None or found is None or (m.group(2).upper() == "X") != (m.group(4) is not None):
+        raise ValueError(f"{location} is not in the process image (it holds %IX %QX %IW %QW "
+                         "%MW %MD %ML)")
+    offset, size = found
+    index = int(m.group(3))
+    if m.group(4) is not None:
+        index = 8 * index + int(m.group(4))
+    start = offset + size * index
+    # each area is followed by the next: the element must end inside its own area
+    area_end = min((o for o, _ in _AREAS.values() if o > offset), default=IMAGE_SIZE)
+    if start + size > area_end:
+        raise ValueError(f"{location} is outside the process image")
+    return start, size
 
 
 @dataclass(frozen=True, eq=False)

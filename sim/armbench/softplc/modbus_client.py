@@ -1,5 +1,7 @@
-"""A small typed Modbus TCP client for talking to the soft PLC or a real OpenPLC, with
-REAL/DINT/LREAL helpers in OpenPLC's word order.
+"""A small typed Modbus TCP client for talking to the soft PLC or a real PLC, with
+REAL/DINT/LREAL helpers by %MD/%ML index in OpenPLC's map and word order (for another flavor's
+layout, read and write by table and address: :meth:`PlcClient.read_table`, and encode with
+:class:`armbench.registermap.Register`).
 
 This is the only module of the package that imports pymodbus: its API moves between minor
 releases, so every use of it is kept here. It works with the pymodbus versions pyproject.toml
@@ -97,6 +99,20 @@ class PlcClient:
         r = self._check(lambda: self._client.read_input_registers(
             address, count=count, device_id=self.device_id), 4)
         return list(r.registers)
+
+    def read_table(self, table: str, address: int, count: int = 1) -> list[int]:
+        """``count`` values of ``table`` ("holding", "input", "coil", "discrete", as
+        :class:`armbench.registermap.Register` names them) with its read function (3, 4, 1,
+        2); bits as 0 or 1."""
+        if table == "holding":
+            return self.read_holding_registers(address, count)
+        if table == "input":
+            return self.read_input_registers(address, count)
+        if table == "coil":
+            return [int(b) for b in self.read_coils(address, count)]
+        if table == "discrete":
+            return [int(b) for b in self.read_discrete_inputs(address, count)]
+        raise ValueError(f"no Modbus table {table!r}: holding, input, coil or discrete")
 
     def write_coil(self, address: int, value: bool) -> None:
         self._check(lambda: self._client.write_coil(address, value, device_id=self.device_id), 5)

@@ -1,14 +1,23 @@
 """OpenPLC v3's Modbus address map and word order (docs/matiec-facts.md), shared by the
-server and the client so both sides agree by construction.
+server and the client so both sides agree by construction; and the word order of each Modbus
+flavor the bench speaks.
 
 Holding registers: 0..1023 %QW, 1024..2047 %MW, 2048..4095 %MD (two registers each),
 4096..8191 %ML (four each). 32/64-bit values travel as their raw bit pattern, most significant
 word first, each word big-endian: i.e. the big-endian encoding of the whole value.
+
+The CODESYS flavor (the Modbus TCP Server Device serving ``armbench export``'s CODESYS
+variant, plc_project/codesys/register-map.md) puts a 32/64-bit value's words in the CPU's byte
+order, least significant word first on the little-endian CPUs it runs on: each register is
+still sent big-endian, so the words are the little-endian encoding of the value read as
+little-endian 16-bit words. Where each variable is under a flavor is derived from the program
+(:mod:`armbench.registermap`); this module knows only the word order.
 """
 
 from __future__ import annotations
 
 import struct
+from dataclasses import dataclass
 from typing import Final
 
 COIL_COUNT: Final = 8192
@@ -118,3 +127,63 @@ def int_to_word(value: int) -> int:
 
 def word_to_int(word: int) -> int:
     return word - 0x10000 if word & 0x8000 else word
+
+
+# ST type -> struct code of its bit pattern (BOOL travels as a coil or discrete input).
+_CODES: Final = {"INT": "h", "UINT": "H", "WORD": "H", "DINT": "i", "UDINT": "I", "DWORD": "I",
+                 "REAL": "f", "LINT": "q", "ULINT": "Q", "LWORD": "Q", "LREAL": "d"}
+
+
+def struct_code(st_type: str) -> str | None:
+    """The struct code of an elementary ST type's registers ("f" for REAL), None for a type
+    with no register encoding (BOOL, BYTE, STRING, ...)."""
+    return _CODES.get(st_type.upper())
+
+
+@dataclass(frozen=True)
+class Flavor:
+    """A kind of Modbus server the bench speaks to: ``name`` as the options spell it
+    (``--plc-flavor``), ``title`` for messages, and the order of a wide value's words."""
+
+    name: str
+    title: str
+    lsw_first: bool
+
+    def _endian(self) -> str:
+        return "<" if self.lsw_first else ">"
+
+    def encode(self, st_type: str, value: int | float) -> list[int]:
+        """The registers of ``value`` as an ``st_type`` (struct.error when it does not fit)."""
+        code = _require(st_type)
+        data = struct.pack(self._endian() + code, value)
+        return list(struct.unpack(f"{self._endian()}{len(data) // 2}H", data))
+
+    def decode(self, st_type: str, words: tuple[int, ...] | list[int]) -> int | float:
+        """The ``st_type`` value of its registers."""
+        code = _require(st_type)
+        e = self._endian()
+        value: int | float = struct.unpack(e + code, struct.pack(f"{e}{len(words)}H", *words))[0]
+        return value
+
+
+def _require(st_type: str) -> str:
+    code = struct_code(st_type)
+    if code is None:
+        raise TypeError(f"{st_type} has no Modbus register encoding")
+    return code
+
+
+OPENPLC: Final = Flavor("openplc", "OpenPLC", lsw_first=False)
+CODESYS: Final = Flavor("codesys", "CODESYS", lsw_first=True)
+FLAVORS: Final = {f.name: f for f in (OPENPLC, CODESYS)}
+
+
+def flavor(name: str | Flavor) -> Flavor:
+    """The flavor named ``name`` (a Flavor is returned as it is); ValueError naming the
+    choices for any other name."""
+    if isinstance(name, Flavor):
+        return name
+    found = FLAVORS.get(name.lower())
+    if found is None:
+        raise ValueError(f"unknown Modbus flavor {name!r}: choose {' or '.join(FLAVORS)}")
+    return found

@@ -1,5 +1,7 @@
 """Modbus TCP server over a :class:`ProcessImage` with OpenPLC v3's address map
-(docs/matiec-facts.md).
+(docs/matiec-facts.md), or with the CODESYS variant's layout when given a
+:class:`~armbench.softplc.codesys_device.CodesysDevice` (its requests and rules are that
+module's; the connection handling below is shared).
 
 Hand-written MBAP/PDU handling instead of pymodbus: it is several times faster per request,
 lets every request run under the scan lock (so function 16 lands atomically between scans),
@@ -62,7 +64,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Final
+from typing import TYPE_CHECKING, Final, Protocol
 
 from .fastpath import FastConnection, ImageLock, ScanLock, new_scan_lock
 from .image import MD_OFFSET, ML_OFFSET, QW_OFFSET, ProcessImage
@@ -77,6 +79,9 @@ from .modbus_map import (
     MD_BASE,
     ML_BASE,
 )
+
+if TYPE_CHECKING:
+    from .codesys_device import CodesysDevice
 
 _log = logging.getLogger(__name__)
 
@@ -175,6 +180,12 @@ class _WideArea:
         wire[skip : skip + len(data)] = data
         itemsize = 2 * k
         self.ne[n].pack_into(raw, self.image_offset + itemsize * first, *self.be[n].unpack(wire))
+
+
+class RequestHandler(Protocol):
+    """Answers one Modbus request PDU with a response PDU (never raises)."""
+
+    def handle(self, pdu: bytes) -> bytes: ...
 
 
 @dataclass
@@ -422,6 +433,10 @@ class ModbusServer:
     what the server makes for itself without one -- and ``fast_path`` is true; with a
     ``threading.Lock`` or ``fast_path=False`` they run through :class:`PduHandler` in Python.
     Both answer alike; :attr:`fast_path` says which one serves.
+
+    ``device``: serve the CODESYS layout instead of OpenPLC's map
+    (:class:`~armbench.softplc.codesys_device.CodesysDevice`, which the soft PLC must also
+    get, to copy its data in and out of the image each scan); always in Python.
     """
 
     def __init__(
@@ -434,6 +449,7 @@ class ModbusServer:
         max_clients: int = DEFAULT_MAX_CLIENTS,
         idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
         fast_path: bool = True,
+        device: CodesysDevice | None = None,
     ) -> None:
         if max_clients < 1:
             raise ValueError(f"max_clients must be at least 1, not {max_clients}")
@@ -442,9 +458,14 @@ class ModbusServer:
                 f"idle timeout must be 0 (off) or a positive number of seconds, not "
                 f"{idle_timeout_s}"
             )
+        if device is not None:
+            if device.image is not image or (lock is not None and device.lock is not lock):
+                raise ValueError("the device must share the server's image and scan lock")
+            lock, fast_path = device.lock, False
         if lock is None:
             lock = new_scan_lock() if fast_path else threading.Lock()
-        self.handler = PduHandler(image, lock)
+        self.handler: RequestHandler = device if device is not None else PduHandler(image, lock)
+        self.device = device
         self.image = image
         self._image_lock = lock if fast_path and isinstance(lock, ImageLock) else None
         self.host = host

@@ -16,6 +16,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from .fastpath import ScanLock, new_scan_lock
 from .image import ProcessImage
@@ -41,6 +42,19 @@ def _set_fifo_priority(priority: int) -> bool:
     except (AttributeError, OSError):  # not Linux, or no CAP_SYS_NICE
         return False
     return True
+
+
+class ScanIo(Protocol):
+    """I/O a task exchanges with the image around each scan, under the scan lock (a CODESYS
+    Modbus device: :class:`~armbench.softplc.codesys_device.CodesysDevice`)."""
+
+    def read_inputs(self) -> None:
+        """Before the task runs: inputs into the image."""
+        ...
+
+    def write_outputs(self) -> None:
+        """After it ran without a fault: outputs out of the image."""
+        ...
 
 
 class PlcState(enum.Enum):
@@ -165,6 +179,9 @@ class SoftPlc:
 
     ``clock_ns`` only measures execution time and in-step start offsets (pass a fake one for
     reproducible statistics); scheduling uses nothing but the ``now_ns`` values given.
+
+    ``io``: copies inputs into the image before each task and outputs out of it after each
+    task that did not fault, inside the task's hold of the scan lock.
     """
 
     def __init__(
@@ -174,6 +191,7 @@ class SoftPlc:
         lock: ScanLock | None = None,
         clock_ns: Callable[[], int] = time.perf_counter_ns,
         reservoir: int = DEFAULT_RESERVOIR,
+        io: ScanIo | None = None,
     ) -> None:
         specs = list(program.tasks)
         if not specs:
@@ -185,6 +203,7 @@ class SoftPlc:
             if spec.interval_ns <= 0:
                 raise ValueError(f"task {spec.name}: interval must be positive")
         self.program = program
+        self.io = io
         # An ImageLock by default: the Modbus server's compiled request path takes it too.
         self.lock: ScanLock = lock if lock is not None else new_scan_lock()
         self._clock_ns = clock_ns
@@ -279,6 +298,8 @@ class SoftPlc:
                 # this step; that is part of their real jitter.
                 t0 = self._clock_ns()
                 start_ns = now_ns + (t0 - step_clock0)
+                if self.io is not None:
+                    self.io.read_inputs()
                 try:
                     self.program.run_task(name, start_ns)
                 except PlcFault as exc:
@@ -286,6 +307,8 @@ class SoftPlc:
                         self._state = PlcState.FAULT
                         self._fault = FaultInfo(exc.message, exc.location, name, start_ns)
                     return ran
+                if self.io is not None:
+                    self.io.write_outputs()
                 t1 = self._clock_ns()
             ran.append(name)
             interval = task.spec.interval_ns
