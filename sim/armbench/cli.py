@@ -106,7 +106,7 @@ def _module_of(prog: CheckedProgram) -> Module:
     from .compiler.ffi import Module
 
     unit = emit(prog)
-    return Module(prog, unit, build(unit).path)
+    return Module(prog, build(unit), unit.decls)
 
 
 _NOT_STANDARD = re.compile(r"^(\w+) is not an IEC standard function")

@@ -116,5 +116,4 @@ def emit_files(paths: Sequence[str | Path],
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
     from .ffi import Module
     prog, unit = emit_files(paths, library)
-    lib = build(unit)
-    return Module(prog, unit, lib.path)
+    return Module(prog, build(unit), unit.decls)
