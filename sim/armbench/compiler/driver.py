@@ -1,7 +1,8 @@
 """The pipeline in one place: files -> diagnostics, or files -> loaded Module.
 
 The files given are the program; ``library`` files are looked up by use (uses.py): only the
-library declarations the program needs are compiled with it.
+library declarations the program needs are compiled with it. Each file's front end is cached
+(units.py), and so is each whole compilation to a Module (programs.py).
 """
 
 from __future__ import annotations
@@ -47,10 +48,12 @@ class Analysis:
 
 
 def analyse_program(paths: Sequence[str | Path],
-                    library: Sequence[str | Path] = ()) -> Analysis:
-    """Check the program ``paths`` together with the declarations of ``library`` it uses."""
+                    library: Sequence[str | Path] = (),
+                    unit_cache: UnitCache | None = None) -> Analysis:
+    """Check the program ``paths`` together with the declarations of ``library`` it uses
+    (``unit_cache``: the front-end cache to use, e.g. one with the files already read)."""
     diags = Diagnostics()
-    cache = UnitCache()
+    cache = UnitCache() if unit_cache is None else unit_cache
     files = expand(paths)
     fronts = [cache.front(path) for path in files]
     for front in fronts:
@@ -64,8 +67,7 @@ def analyse_program(paths: Sequence[str | Path],
         units.append(front.unit)
     if diags.has_errors:
         return Analysis(None, diags)
-    given = {path.resolve() for path in files}
-    lib_files = [p for p in expand(library) if p.resolve() not in given]
+    lib_files = library_files(files, library)
     use = LibraryUse()
     if lib_files:
         lib = Library(lib_files, diags, cache)
@@ -81,6 +83,12 @@ def analyse_program(paths: Sequence[str | Path],
     if use.replaced:
         _explain_replacements(diags, use)
     return Analysis(None if diags.has_errors else prog, diags, use)
+
+
+def library_files(files: Sequence[Path], library: Sequence[str | Path]) -> list[Path]:
+    """The library's files that are not among the program's ``files``."""
+    given = {path.resolve() for path in files}
+    return [p for p in expand(library) if p.resolve() not in given]
 
 
 def _explain_replacements(diags: Diagnostics, use: LibraryUse) -> None:
@@ -105,15 +113,30 @@ def check_files(paths: Sequence[str | Path],
     return analyse(paths, library)[1].sorted()
 
 
-def emit_files(paths: Sequence[str | Path],
-               library: Sequence[str | Path] = ()) -> tuple[CheckedProgram, CUnit]:
-    prog, diags = analyse(paths, library)
-    if prog is None:
-        raise CompileFailed(diags.sorted())
-    return prog, emit(prog)
+def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+               unit_cache: UnitCache | None = None) -> tuple[CheckedProgram, CUnit]:
+    a = analyse_program(paths, library, unit_cache)
+    if a.program is None:
+        raise CompileFailed(a.diagnostics.sorted())
+    return a.program, emit(a.program)
 
 
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
+    """The program compiled and loaded: from the cache of compilations (programs.py) when
+    these files were compiled before. Its ``program`` is the checked program's interface
+    (POUs without their bodies: analyse_program gives the whole checked program)."""
     from .ffi import Module
-    prog, unit = emit_files(paths, library)
-    return Module(prog, build(unit), unit.decls)
+    from .programs import ProgramCache
+
+    files = expand(paths)
+    programs = ProgramCache()
+    sources = programs.read(files, library_files(files, library))
+    if sources is None:  # a file cannot be read: the compilation reports it
+        prog, unit = emit_files(files, library)
+        return Module(prog, build(unit), unit.decls)
+    hit = programs.get(sources)
+    if hit is not None:
+        return Module(hit.program, hit.library, hit.decls)
+    prog, unit = emit_files(files, library, UnitCache(contents=sources.contents))
+    lib = build(unit)
+    return Module(programs.put(sources, prog, unit, lib), lib, unit.decls)

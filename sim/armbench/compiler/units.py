@@ -1,8 +1,9 @@
 """The front end of a file (parse, nesting guard, lexical rules, lowering), cached by content.
 
 The result for a file depends only on its path (positions name it) and its bytes, and on the
-compiler itself: it is pickled under the build cache folder (build.cache_dir) with a key
-hashing all three, so an unchanged library file is never parsed or lowered twice. A cache
+compiler itself (its Python sources, its data and runtime files, the grammar and the Python it
+runs on): it is pickled under the build cache folder (build.cache_dir) with a key hashing all
+three, so an unchanged library file is never parsed or lowered twice. A cache
 entry that cannot be read back (truncated, corrupt, from another Python) is ignored and
 written anew; a cache folder that cannot be written to only costs the time saved.
 """
@@ -15,6 +16,7 @@ import os
 import pickle
 import sys
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,25 +45,41 @@ class FileFront:
 
 
 def compiler_version() -> bytes:
-    """A digest of the compiler's own sources and of the grammar and Python it runs on: a
-    cache entry written by another compiler is never read."""
+    """A digest of the compiler's own sources, data and runtime files (the name lists of
+    rules.py, the C runtime header) and of the grammar and Python it runs on: a cache entry
+    written by another compiler is never read."""
     import tree_sitter_iec61131_3_st as st_grammar
 
     h = hashlib.sha256(_FORMAT)
     h.update(sys.version.encode())
     h.update(str(Path(st_grammar.__file__).stat().st_mtime_ns).encode())
-    for source in sorted(_COMPILER_DIR.glob("*.py")):
-        h.update(source.name.encode())
-        h.update(source.read_bytes())
+    sources = [*_COMPILER_DIR.glob("*.py"), *(_COMPILER_DIR / "data").iterdir(),
+               *(_COMPILER_DIR / "runtime").iterdir()]
+    for source in sorted(sources):
+        if source.is_file():
+            h.update(str(source.relative_to(_COMPILER_DIR)).encode())
+            data = source.read_bytes()
+            h.update(len(data).to_bytes(8, "little"))
+            h.update(data)
     return h.digest()
 
 
 class UnitCache:
-    """Per-file front-end results and declared names, pickled under ``folder``."""
+    """Per-file front-end results and declared names, pickled under ``folder``.
 
-    def __init__(self, folder: Path | None = None) -> None:
+    ``contents``: files already read (path -> bytes), taken from there instead of the disk,
+    so that a compilation reads each file once (see programs.py)."""
+
+    def __init__(self, folder: Path | None = None,
+                 contents: Mapping[Path, bytes] | None = None) -> None:
         self.folder = (cache_dir() if folder is None else folder) / "units"
         self._version = compiler_version()
+        self._contents = {} if contents is None else contents
+
+    def read(self, path: Path) -> bytes:
+        """The file's bytes (OSError when it cannot be read)."""
+        data = self._contents.get(path)
+        return path.read_bytes() if data is None else data
 
     def _key(self, kind: str, path: Path, data: bytes) -> Path:
         h = hashlib.sha256(self._version)
@@ -109,7 +127,7 @@ class UnitCache:
         """The file through the front end (``data``: its bytes when already read)."""
         if data is None:
             try:
-                data = path.read_bytes()
+                data = self.read(path)
             except OSError as exc:
                 return FileFront([Diagnostic(SourcePos(str(path), 1, 1), "E0001",
                                              f"cannot read {path}: {exc}")], None)
