@@ -19,7 +19,7 @@ from .emit_c import CUnit, emit
 from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
-from .units import UnitCache
+from .units import UnitCache, paused_gc
 from .uses import Library, LibraryUse
 
 if TYPE_CHECKING:
@@ -52,6 +52,12 @@ def analyse_program(paths: Sequence[str | Path],
                     unit_cache: UnitCache | None = None) -> Analysis:
     """Check the program ``paths`` together with the declarations of ``library`` it uses
     (``unit_cache``: the front-end cache to use, e.g. one with the files already read)."""
+    with paused_gc():
+        return _analyse_program(paths, library, unit_cache)
+
+
+def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
+                     unit_cache: UnitCache | None) -> Analysis:
     diags = Diagnostics()
     cache = UnitCache() if unit_cache is None else unit_cache
     files = expand(paths)
@@ -115,16 +121,22 @@ def check_files(paths: Sequence[str | Path],
 
 def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
                unit_cache: UnitCache | None = None) -> tuple[CheckedProgram, CUnit]:
-    a = analyse_program(paths, library, unit_cache)
-    if a.program is None:
-        raise CompileFailed(a.diagnostics.sorted())
-    return a.program, emit(a.program)
+    with paused_gc():
+        a = analyse_program(paths, library, unit_cache)
+        if a.program is None:
+            raise CompileFailed(a.diagnostics.sorted())
+        return a.program, emit(a.program)
 
 
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
     """The program compiled and loaded: from the cache of compilations (programs.py) when
     these files were compiled before. Its ``program`` is the checked program's interface
     (POUs without their bodies: analyse_program gives the whole checked program)."""
+    with paused_gc():
+        return _compile_files(paths, library)
+
+
+def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path]) -> Module:
     from .ffi import Module
     from .programs import ProgramCache
 

@@ -18,7 +18,6 @@ temporary name and renamed, so concurrent compilations never read half an entry.
 from __future__ import annotations
 
 import dataclasses
-import gc
 import hashlib
 import io
 import os
@@ -34,7 +33,7 @@ from .build import BuiltLibrary, cache_dir, cached_library
 from .emit_c import CUnit
 from .symbols import CheckedProgram
 from .types import ELEMENTARY, ERROR_T, INT_LIT, REAL_LIT
-from .units import compiler_version
+from .units import compiler_version, paused_gc
 
 _FORMAT = b"armbench-programs-1"
 # shared type objects the checker compares by identity: pickled by name, loaded as themselves
@@ -134,15 +133,11 @@ class ProgramCache:
             blob = self._path(sources).read_bytes()
         except OSError:
             return None
-        collecting = gc.isenabled()
-        gc.disable()  # a tree being built has no garbage to collect
         try:
-            entry = _Unpickler(io.BytesIO(blob)).load()
+            with paused_gc():
+                entry = _Unpickler(io.BytesIO(blob)).load()
         except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
             return None
-        finally:
-            if collecting:
-                gc.enable()
         if not isinstance(entry, _Entry) or not isinstance(entry.program, CheckedProgram):
             return None
         library = cached_library(entry.digest)

@@ -16,7 +16,8 @@ import os
 import pickle
 import sys
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +43,21 @@ class FileFront:
     @property
     def syntax_errors(self) -> bool:
         return any(d.severity == "error" for d in self.syntax)
+
+
+@contextmanager
+def paused_gc() -> Iterator[None]:
+    """The cyclic garbage collector off while a compilation builds its trees: it would scan
+    them (and everything else the process holds) again and again as they grow, and they hold
+    no garbage cycles worth collecting before the compilation ends. Back on afterwards, unless
+    it was off before (e.g. paused by an enclosing compilation)."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collecting:
+            gc.enable()
 
 
 def compiler_version() -> bytes:
@@ -94,17 +110,11 @@ class UnitCache:
                 blob = f.read()
         except OSError:
             return None
-        # The collector would scan the tree again and again while it is being built: off for
-        # the load, which makes no cycles worth collecting.
-        collecting = gc.isenabled()
-        gc.disable()
         try:
-            value = pickle.loads(blob)
+            with paused_gc():
+                value = pickle.loads(blob)
         except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
             return None
-        finally:
-            if collecting:
-                gc.enable()
         return value if isinstance(value, want) else None
 
     def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
