@@ -162,7 +162,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     unit = emit(_checked(args))
     lib = build(unit)
     dt = time.perf_counter() - t0
-    print(f"{lib.path} ({'cached' if lib.cached else 'built'} in {dt:.3f} s; C: {lib.c_path})")
+    how = "cached" if lib.cached else "built" if lib.units == 1 else \
+        f"built as {lib.units} translation units"
+    print(f"{lib.path} ({how} in {dt:.3f} s; C: {lib.c_path})")
     return EXIT_OK
 
 

@@ -149,6 +149,11 @@ def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path]) -
     hit = programs.get(sources)
     if hit is not None:
         return Module(hit.program, hit.library, hit.decls)
-    prog, unit = emit_files(files, library, UnitCache(contents=sources.contents))
-    lib = build(unit)
+    # the files' front ends are written to their cache while the C compiles
+    unit_cache = UnitCache(contents=sources.contents, deferred=True)
+    try:
+        prog, unit = emit_files(files, library, unit_cache)
+        lib = build(unit, meanwhile=unit_cache.flush)
+    finally:
+        unit_cache.flush()  # what is left: all of it when the files had errors
     return Module(programs.put(sources, prog, unit, lib), lib, unit.decls)

@@ -84,13 +84,16 @@ class UnitCache:
     """Per-file front-end results and declared names, pickled under ``folder``.
 
     ``contents``: files already read (path -> bytes), taken from there instead of the disk,
-    so that a compilation reads each file once (see programs.py)."""
+    so that a compilation reads each file once (see programs.py). ``deferred``: entries are
+    written by ``flush``, not when made (a build writes them while the C compiler runs)."""
 
     def __init__(self, folder: Path | None = None,
-                 contents: Mapping[Path, bytes] | None = None) -> None:
+                 contents: Mapping[Path, bytes] | None = None, deferred: bool = False) -> None:
         self.folder = (cache_dir() if folder is None else folder) / "units"
         self._version = compiler_version()
         self._contents = {} if contents is None else contents
+        self._deferred = deferred
+        self._pending: list[tuple[Path, object]] = []
 
     def read(self, path: Path) -> bytes:
         """The file's bytes (OSError when it cannot be read)."""
@@ -119,6 +122,18 @@ class UnitCache:
 
     def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
         target = self._key(kind, path, data)
+        if self._deferred:
+            self._pending.append((target, value))
+        else:
+            self._write(target, value)
+
+    def flush(self) -> None:
+        """Write the entries ``put`` deferred."""
+        pending, self._pending = self._pending, []
+        for target, value in pending:
+            self._write(target, value)
+
+    def _write(self, target: Path, value: object) -> None:
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             # a temporary name, then a rename: a concurrent reader never sees half a file
