@@ -7,7 +7,7 @@
    (as many translation units at once as there are usable CPUs, build.plan_units) and cffi's
    declarations module;
 5. a cached build of st/, in-process: the cache of compilations (compiler/programs.py) loads
-   the program's interface, the declarations module and the library, and nothing else runs.
+   the checked program, the declarations module and the library, and nothing else runs.
 
 Each line gives the best wall time of R runs and the CPU time (user+sys, the C compiler
 included) of that run: the machine may be shared, and CPU time says what load cannot.

@@ -20,7 +20,9 @@ from armbench.compiler import build as build_mod
 from armbench.compiler import driver, emit_c, programs, resolve, units
 from armbench.compiler.diagnostics import CompileFailed
 from armbench.compiler.driver import analyse_program, compile_files
+from armbench.compiler.symbols import CheckedProgram
 from armbench.compiler.types import ELEMENTARY
+from armbench.export.codesys import located
 
 LIBRARY = """FUNCTION Twice : DINT
   VAR_INPUT
@@ -35,8 +37,12 @@ VAR
   n : DINT;
   r : REAL;
 END_VAR
+VAR
+  out AT %QW0 : WORD;
+END_VAR
   n := Twice(n + 1);
   r := DINT_TO_REAL(n);
+  out := DINT_TO_WORD(n);
 END_PROGRAM
 
 CONFIGURATION Config0
@@ -191,20 +197,24 @@ def test_a_damaged_declarations_module_is_written_again(
     assert module.read_text() == good
 
 
-def test_the_module_gets_the_checked_programs_interface(
-        files: tuple[Path, Path, Path]) -> None:
+def test_the_module_gets_the_whole_checked_program(files: tuple[Path, Path, Path]) -> None:
     prog, lib, _ = files
-    checked = analyse_program([prog], [lib]).program
-    assert checked is not None
+    fresh = analyse_program([prog], [lib]).program
+    assert fresh is not None
 
-    def shape(p: Any) -> list[tuple[str, str, list[tuple[str, str, str]]]]:
-        return [(pou.name, pou.kind, [(v.name, v.kind, v.type.name) for v in pou.vars.values()])
+    def shape(p: CheckedProgram) -> list[tuple[str, str, list[tuple[str, str, str]], int]]:
+        return [(pou.name, pou.kind, [(v.name, v.kind, v.type.name) for v in pou.vars.values()],
+                 0 if pou.node is None else len(pou.node.body))
                 for pou in p.pous.values()]
 
     for _ in ("compiled", "from the cache"):
         mod = compile_files([prog], [lib])
-        assert shape(mod.program) == shape(checked)
-        assert all(pou.node is None for pou in mod.program.pous.values())  # bodies left out
+        assert shape(mod.program) == shape(fresh)
+        assert len(mod.program.expr_types) == len(fresh.expr_types) > 0
+        assert len(mod.program.units) == len(fresh.units) == 2
+        # what the CODESYS device reads of it: the located variables, from the syntax trees
+        assert [(p.name, d.name, w) for p, d, w in located(mod.program)] == \
+            [(p.name, d.name, w) for p, d, w in located(fresh)] == [("Main", "out", True)]
         n = mod.program.pous["MAIN"].vars["N"]
         assert n.type is ELEMENTARY["DINT"]  # the shared type objects stay themselves
         config = mod.program.config

@@ -113,11 +113,11 @@ def library_digest(unit: CUnit, flags: Sequence[str]) -> str:
 
 
 def build(unit: CUnit, extra_flags: tuple[str, ...] = (), jobs: int | None = None,
-          meanwhile: Callable[[], None] = lambda: None,
+          meanwhile: Callable[[BuiltLibrary], None] = lambda lib: None,
           min_unit_bytes: int = MIN_UNIT_BYTES) -> BuiltLibrary:
     """The library of ``unit``, from the cache or compiled as up to ``jobs`` translation
     units at once (default: one per usable CPU; see plan_units). ``meanwhile``: the caller's
-    work, done while the C compiles (at once when nothing is compiled)."""
+    work, given the library to be, done while the C compiles (at once when nothing is)."""
     from .declarations import write_declarations  # cffi: imported by builds only
 
     flags = [*CFLAGS, *extra_flags]
@@ -127,7 +127,7 @@ def build(unit: CUnit, extra_flags: tuple[str, ...] = (), jobs: int | None = Non
     out_dir = so.parent
     out_dir.mkdir(parents=True, exist_ok=True)
     if so.exists():
-        meanwhile()
+        meanwhile(cached)
         if not declarations.exists():  # written before the library: removed since
             write_declarations(unit.decls, declarations)
         return cached
@@ -137,12 +137,13 @@ def build(unit: CUnit, extra_flags: tuple[str, ...] = (), jobs: int | None = Non
     _write_atomic(c_path, unit.code)
     cc = find_cc()
     groups = plan_units(unit.pieces, usable_cpus() if jobs is None else jobs, min_unit_bytes)
+    built = _library(digest, len(groups))
     # compile to a temporary name, then rename: concurrent builds never see a partial file
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=out_dir)
     os.close(fd)
 
     def while_compiling() -> None:
-        meanwhile()
+        meanwhile(built)
         write_declarations(unit.decls, declarations)
 
     try:
@@ -155,7 +156,7 @@ def build(unit: CUnit, extra_flags: tuple[str, ...] = (), jobs: int | None = Non
         Path(tmp).unlink(missing_ok=True)
         raise
     os.replace(tmp, so)
-    return _library(digest, len(groups))
+    return built
 
 
 def _build_split(unit: CUnit, groups: list[list[str]], cc: str, flags: list[str], out: str,

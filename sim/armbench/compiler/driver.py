@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from . import ast as A
-from .build import build
+from .build import BuiltLibrary, build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .emit_c import CUnit, emit
 from .resolve import check
@@ -130,8 +130,7 @@ def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
 
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
     """The program compiled and loaded: from the cache of compilations (programs.py) when
-    these files were compiled before. Its ``program`` is the checked program's interface
-    (POUs without their bodies: analyse_program gives the whole checked program)."""
+    these files were compiled before."""
     with paused_gc():
         return _compile_files(paths, library)
 
@@ -149,11 +148,17 @@ def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path]) -
     hit = programs.get(sources)
     if hit is not None:
         return Module(hit.program, hit.library, hit.decls)
-    # the files' front ends are written to their cache while the C compiles
+    # the files' front ends and the compilation are written to their caches while the C
+    # compiles
     unit_cache = UnitCache(contents=sources.contents, deferred=True)
     try:
         prog, unit = emit_files(files, library, unit_cache)
-        lib = build(unit, meanwhile=unit_cache.flush)
+
+        def meanwhile(lib: BuiltLibrary) -> None:
+            unit_cache.flush()
+            programs.put(sources, prog, unit.decls, lib)
+
+        lib = build(unit, meanwhile=meanwhile)
     finally:
         unit_cache.flush()  # what is left: all of it when the files had errors
-    return Module(programs.put(sources, prog, unit, lib), lib, unit.decls)
+    return Module(prog, lib, unit.decls)

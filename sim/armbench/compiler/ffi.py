@@ -221,11 +221,8 @@ class Instance:
 class Module:
     """A compiled set of ST files loaded into this process.
 
-    ``program`` is what the FFI needs of the checked program: its types, its POUs with their
-    variables, its configuration (driver.compile_files hands over the POUs without their
-    bodies; a checked program from driver.analyse_program has them). ``decls`` are the
-    library's C declarations (CUnit.decls): the declarations module is written anew from them
-    should it be unusable."""
+    ``decls`` are the library's C declarations (CUnit.decls): its declarations module is
+    written anew from them should it be unusable."""
 
     def __init__(self, prog: CheckedProgram, library: BuiltLibrary, decls: str) -> None:
         self.program = prog

@@ -5,19 +5,19 @@ An entry is keyed by a hash of every file of the compilation (the program's and 
 each with its path, in order) and of the compiler (units.compiler_version: its sources, data
 and runtime files, the grammar, Python) and cffi. The files are read once, for the key, and the
 compilation reads them from there (units.UnitCache's contents), so an entry always describes
-the bytes it is keyed by. An entry holds what ffi.Module needs: the checked program's interface
-(its types, its POUs with their variables, its configuration; the POUs' bodies, the syntax
-trees and the expression types are left out: loading them would cost what the entry saves),
-the library's C declarations and the digest that names the library in the build cache.
+the bytes it is keyed by. An entry holds the checked program (what ffi.Module.program is: the
+soft PLC and the CODESYS device read its syntax trees too), the library's C declarations and
+the digest that names the library in the build cache.
 
 An entry that cannot be read back, or whose library is gone from the build cache, is a miss:
-the program is compiled again and the entry written anew. Entries are written under a
-temporary name and renamed, so concurrent compilations never read half an entry.
+the program is compiled again and the entry written anew (while its C compiles). Entries are
+written under a temporary name and renamed, so concurrent compilations never read half an
+entry.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import copyreg
 import hashlib
 import io
 import os
@@ -28,20 +28,40 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from . import ast as A
 from .build import BuiltLibrary, cache_dir, cached_library
-from .emit_c import CUnit
+from .stdlib import STD_FUNCS, StdFunc
 from .symbols import CheckedProgram
-from .types import ELEMENTARY, ERROR_T, INT_LIT, REAL_LIT
+from .types import ELEMENTARY, ERROR_T, INT_LIT, REAL_LIT, ElemType, LiteralType
 from .units import compiler_version, paused_gc
 
 _FORMAT = b"armbench-programs-1"
-# shared type objects the checker compares by identity: pickled by name, loaded as themselves
-_SHARED_TYPES: dict[str, object] = {
-    **{f"elem:{name}": t for name, t in ELEMENTARY.items()},
-    "literal:int": INT_LIT, "literal:real": REAL_LIT, "literal:error": ERROR_T,
-}
-_SHARED_IDS = {id(t): key for key, t in _SHARED_TYPES.items()}
+_LITERAL_TYPES = {t.name: t for t in (INT_LIT, REAL_LIT, ERROR_T)}
+
+
+def _elementary(name: str) -> ElemType:
+    return ELEMENTARY[name]
+
+
+def _literal_type(name: str) -> LiteralType:
+    return _LITERAL_TYPES[name]
+
+
+def _std_func(name: str) -> StdFunc:
+    return STD_FUNCS[name]
+
+
+def _by_name(lookup: Any) -> Any:
+    def reduce(obj: Any) -> tuple[Any, tuple[str]]:
+        return lookup, (obj.name,)
+    return reduce
+
+
+# The type and standard-function objects the compiler shares (and compares by identity) are
+# pickled by name and loaded as themselves; a table of the pickler's, looked up by class in
+# C: a per-object hook in Python would double the time to write an entry.
+_SHARED = copyreg.dispatch_table | {ElemType: _by_name(_elementary),
+                                    LiteralType: _by_name(_literal_type),
+                                    StdFunc: _by_name(_std_func)}
 
 
 @dataclass(frozen=True)
@@ -54,7 +74,7 @@ class Sources:
 
 @dataclass(frozen=True)
 class CachedProgram:
-    program: CheckedProgram  # the interface (see the module's docstring)
+    program: CheckedProgram
     decls: str  # CUnit.decls
     library: BuiltLibrary
 
@@ -64,37 +84,6 @@ class _Entry:
     program: CheckedProgram
     decls: str
     digest: str
-
-
-class _Pickler(pickle.Pickler):
-    def persistent_id(self, obj: Any) -> str | None:
-        if isinstance(obj, A.Pou):
-            return "pou"  # a POU's syntax tree: left out
-        return _SHARED_IDS.get(id(obj))
-
-
-class _Unpickler(pickle.Unpickler):
-    def persistent_load(self, pid: Any) -> object:
-        if pid == "pou":
-            return None
-        try:
-            return _SHARED_TYPES[pid]
-        except KeyError:
-            raise pickle.UnpicklingError(f"unknown shared object {pid!r}") from None
-
-
-def _dumps(prog: CheckedProgram, decls: str = "", digest: str = "") -> bytes:
-    slim = dataclasses.replace(prog, expr_types={}, names={}, calls={}, units=[])
-    out = io.BytesIO()
-    _Pickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(_Entry(slim, decls, digest))
-    return out.getvalue()
-
-
-def _loads(blob: bytes) -> CheckedProgram:
-    entry = _Unpickler(io.BytesIO(blob)).load()
-    if not isinstance(entry, _Entry) or not isinstance(entry.program, CheckedProgram):
-        raise pickle.UnpicklingError("not a program entry")
-    return entry.program
 
 
 class ProgramCache:
@@ -135,7 +124,7 @@ class ProgramCache:
             return None
         try:
             with paused_gc():
-                entry = _Unpickler(io.BytesIO(blob)).load()
+                entry = pickle.loads(blob)
         except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
             return None
         if not isinstance(entry, _Entry) or not isinstance(entry.program, CheckedProgram):
@@ -145,24 +134,27 @@ class ProgramCache:
             return None
         return CachedProgram(entry.program, entry.decls, library)
 
-    def put(self, sources: Sources, prog: CheckedProgram, unit: CUnit,
-            library: BuiltLibrary) -> CheckedProgram:
-        """Store the compilation; returns the program's interface, as ``get`` would."""
+    def put(self, sources: Sources, prog: CheckedProgram, decls: str,
+            library: BuiltLibrary) -> None:
+        """Store the compilation whose library is (or is being built as) ``library``: an entry
+        whose library never appears is a miss."""
+        out = io.BytesIO()
+        pickler = pickle.Pickler(out, protocol=pickle.HIGHEST_PROTOCOL)
+        pickler.dispatch_table = _SHARED
         try:
-            blob = _dumps(prog, unit.decls, library.digest)
+            pickler.dump(_Entry(prog, decls, library.digest))
         except (pickle.PicklingError, RecursionError):
-            return prog  # not cached: the next run compiles again
+            return  # not cached: the next run compiles again
         target = self._path(sources)
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=target.parent)
             try:
                 with os.fdopen(fd, "wb") as f:
-                    f.write(blob)
+                    f.write(out.getvalue())
                 os.replace(tmp, target)
             except BaseException:
                 Path(tmp).unlink(missing_ok=True)
                 raise
         except OSError:
             pass  # not cached: the next run compiles again
-        return _loads(blob)
