@@ -120,8 +120,7 @@ def main(repeat: int) -> None:
                 os.environ["ARMBENCH_CACHE"] = empty
                 compile_files(st_files)
         units = len(plan_units(emit_files(st_files)[1].pieces, usable_cpus()))
-        line(f"cold build of st/ (empty cache, {units} C units)", best(cold, min(repeat, 3)),
-             2.0)
+        line(f"cold build of st/ (empty cache, {units} C units)", best(cold, repeat), 2.0)
         os.environ["ARMBENCH_CACHE"] = str(cache)
         compile_files(st_files)
         line("cached build of st/", best(lambda: compile_files(st_files), repeat), 0.2)
