@@ -1,7 +1,7 @@
 """The rules only some dialects enforce; their severity comes from the target (targets.py).
 
-Needs: a CheckedProgram without errors in its own declarations (run after resolve and
-rules.check_names). Each rule was established on the real tools:
+Needs: a CheckedProgram (after resolve and rules.check_names; what an erroneous program
+leaves unresolved is skipped). Each rule was established on the real tools:
 
 - E0214: names IEC 61131-3 (3rd edition), CODESYS, TwinCAT or RuSTy reserve and MatIEC does
   not (reserved.py holds the lists and their sources).
