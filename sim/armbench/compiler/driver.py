@@ -1,7 +1,9 @@
 """The pipeline in one place: files -> diagnostics, or files -> loaded Module.
 
 The files given are the program; ``library`` files are looked up by use (uses.py): only the
-library declarations the program needs are compiled with it.
+library declarations the program needs are compiled with it. ``target`` (targets.py) says
+which dialects the check is for: a check defaults to all of them, as `armbench check` does;
+compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``openplc``.
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ from typing import TYPE_CHECKING
 from . import ast as A
 from .build import build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
+from .dialects import check_dialects
 from .emit_c import CUnit, emit
 from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
+from .targets import ALL, OPENPLC_ONLY, Target
 from .units import UnitCache
 from .uses import Library, LibraryUse
 
@@ -46,9 +50,10 @@ class Analysis:
     library: LibraryUse = field(default_factory=LibraryUse)
 
 
-def analyse_program(paths: Sequence[str | Path],
-                    library: Sequence[str | Path] = ()) -> Analysis:
-    """Check the program ``paths`` together with the declarations of ``library`` it uses."""
+def analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                    target: Target = ALL) -> Analysis:
+    """Check the program ``paths`` together with the declarations of ``library`` it uses, for
+    the dialects of ``target``."""
     diags = Diagnostics()
     cache = UnitCache()
     files = expand(paths)
@@ -78,6 +83,7 @@ def analyse_program(paths: Sequence[str | Path],
             units.append(use.prune(unit))
     prog = check(units, diags)
     check_names(prog, diags)
+    check_dialects(prog, diags, target)
     if use.replaced:
         _explain_replacements(diags, use)
     return Analysis(None if diags.has_errors else prog, diags, use)
@@ -94,27 +100,28 @@ def _explain_replacements(diags: Diagnostics, use: LibraryUse) -> None:
     diags.error(use.replaced[0].mine.pos, "E0213", use.conflict())
 
 
-def analyse(paths: Sequence[str | Path], library: Sequence[str | Path] = ()
-            ) -> tuple[CheckedProgram | None, Diagnostics]:
-    a = analyse_program(paths, library)
+def analyse(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+            target: Target = ALL) -> tuple[CheckedProgram | None, Diagnostics]:
+    a = analyse_program(paths, library, target)
     return a.program, a.diagnostics
 
 
-def check_files(paths: Sequence[str | Path],
-                library: Sequence[str | Path] = ()) -> list[Diagnostic]:
-    return analyse(paths, library)[1].sorted()
+def check_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                target: Target = ALL) -> list[Diagnostic]:
+    return analyse(paths, library, target)[1].sorted()
 
 
-def emit_files(paths: Sequence[str | Path],
-               library: Sequence[str | Path] = ()) -> tuple[CheckedProgram, CUnit]:
-    prog, diags = analyse(paths, library)
+def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+               target: Target = OPENPLC_ONLY) -> tuple[CheckedProgram, CUnit]:
+    prog, diags = analyse(paths, library, target)
     if prog is None:
         raise CompileFailed(diags.sorted())
     return prog, emit(prog)
 
 
-def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
+def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                  target: Target = OPENPLC_ONLY) -> Module:
     from .ffi import Module
-    prog, unit = emit_files(paths, library)
+    prog, unit = emit_files(paths, library, target)
     lib = build(unit)
     return Module(prog, unit, lib.path)
