@@ -1,0 +1,465 @@
+"""MotionJointMove's profile 4 (time-optimal jerk-limited, all joints synchronised) and
+MotionHalt's jerk-limited braking (st/MotionJoint.st), scan by scan, against Ruckig.
+
+The reference is the PyPI `ruckig` package (Ruckig.calculate, phase synchronisation: the
+block's documented Sync) on exactly the inputs the block latches: the group's REAL position,
+velocity and acceleration (the acceleration within +/- the joint's limit) and the REAL limits
+min(Velocity, MaxVelDeg), min(Acceleration, MaxAccDeg), Jerk. Per move: the same duration
+within 1e-4 relative, the setpoints of every scan within float32 tolerance of Ruckig's
+trajectory at that time, the target reached exactly, and -- densely, with the same move run at
+a 20 times shorter cycle (the plan is a function of time, not of the cycle) -- velocity,
+acceleration and jerk within the limits at every sample (the block's own outputs, and the
+finite differences of its positions).
+
+The jerk-limited halt is checked against Ruckig's velocity interface with the limits its
+header promises (each joint on its own: |a| <= D = min(Deceleration, MaxAccDeg), jerk Jerk
+raised so that no acceleration ramp lasts more than 0.02 s, and for a joint already braking
+the jerk that ends the braking at rest), and against the promises themselves: continuous
+position and velocity, no reversal, at rest within |v0| / D + 0.03 s.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+from jerk_support import F32_EPS, AxisCase, ruckig_plan
+from motion_support import BAD_PARAMETER, BAD_PROFILE, GroupSim, make_group
+
+ruckig = pytest.importorskip("ruckig")
+
+DT = 0.01
+DT32 = float(np.float32(DT))  # the block's REAL CycleTime: its time is scans * DT32
+JERK_PROFILE = 4
+JERK_TOO_LONG = 29
+HALT_RAMP_S = 0.02  # MotionHalt's HaltRampS
+
+
+def f32(x: float) -> float:
+    return float(np.float32(x))
+
+
+@dataclass(frozen=True)
+class JointCase:
+    """A group (per joint: position, velocity, acceleration, limits) and a profile-4 move."""
+
+    start: tuple[float, ...]
+    target: tuple[float, ...]
+    max_vel: tuple[float, ...]
+    max_acc: tuple[float, ...]
+    velocity: float
+    acceleration: float
+    jerk: float
+    vel0: tuple[float, ...] = ()
+    acc0: tuple[float, ...] = ()
+
+    @property
+    def joints(self) -> int:
+        return len(self.start)
+
+    def group(self) -> dict[str, Any]:
+        n = self.joints
+        g = make_group(list(self.start), joints=n, lower=-1.0e6, upper=1.0e6)
+        g["Limits"]["MaxVelDeg"] = list(self.max_vel) + [1.0] * (6 - n)
+        g["Limits"]["MaxAccDeg"] = list(self.max_acc) + [1.0] * (6 - n)
+        g["Velocity"] = list(self.vel0 or (0.0,) * n) + [0.0] * (6 - n)
+        g["Acceleration"] = list(self.acc0 or (0.0,) * n) + [0.0] * (6 - n)
+        return g
+
+    def inputs(self, cycle: float = DT) -> dict[str, Any]:
+        return {"Execute": True, "Target": list(self.target) + [0.0] * (6 - self.joints),
+                "Profile": JERK_PROFILE, "Velocity": self.velocity,
+                "Acceleration": self.acceleration, "Jerk": self.jerk, "CycleTime": cycle}
+
+    def axes(self) -> list[AxisCase]:
+        """Ruckig's inputs: what the block latches (REALs; limits capped; acceleration
+        within the limit)."""
+        out = []
+        for j in range(self.joints):
+            vmax = f32(min(self.velocity, self.max_vel[j]))
+            amax = f32(min(self.acceleration, self.max_acc[j]))
+            v0 = f32(self.vel0[j]) if self.vel0 else 0.0
+            a0 = f32(self.acc0[j]) if self.acc0 else 0.0
+            out.append(AxisCase(f32(self.start[j]), v0, max(-amax, min(amax, a0)),
+                                f32(self.target[j]), 0.0, vmax, amax, f32(self.jerk)))
+        return out
+
+
+def random_case(rng: random.Random, kind: str, joints: int = 3) -> JointCase:
+    """A move of `kind`: rest (from rest), moving (a start moving and accelerating inside
+    the limits), fast (a start faster than the new speed limit: Ruckig brakes first)."""
+    max_vel = tuple(f32(rng.uniform(60.0, 200.0)) for _ in range(joints))
+    max_acc = tuple(f32(rng.uniform(200.0, 1500.0)) for _ in range(joints))
+    velocity = f32(rng.uniform(20.0, 220.0))
+    acceleration = f32(rng.uniform(100.0, 1600.0))
+    jerk = f32(math.exp(rng.uniform(math.log(500.0), math.log(5.0e4))))
+    start = tuple(f32(rng.uniform(-150.0, 150.0)) for _ in range(joints))
+    target = tuple(f32(rng.uniform(-150.0, 150.0)) for _ in range(joints))
+    if kind == "rest":
+        return JointCase(start, target, max_vel, max_acc, velocity, acceleration, jerk)
+    vmax = [min(velocity, v) for v in max_vel]
+    amax = [min(acceleration, a) for a in max_acc]
+    vel0, acc0 = [], []
+    for j in range(joints):
+        if kind == "fast":
+            vel0.append(f32(rng.choice((-1.0, 1.0)) * vmax[j] * rng.uniform(1.1, 1.8)))
+            acc0.append(0.0)
+            continue
+        for _ in range(100):
+            v = rng.uniform(-vmax[j], vmax[j])
+            a = rng.uniform(-amax[j], amax[j])
+            if abs(v + a * abs(a) / (2.0 * jerk)) <= vmax[j]:
+                break
+        vel0.append(f32(v))
+        acc0.append(f32(a))
+    return JointCase(start, target, max_vel, max_acc, velocity, acceleration, jerk,
+                     tuple(vel0), tuple(acc0))
+
+
+@dataclass
+class Run:
+    pos: np.ndarray     # scans x joints
+    vel: np.ndarray
+    acc: np.ndarray
+    duration: float
+    scans: int
+
+
+def run_move(st_module: Any, case: JointCase, cycle: float = DT,
+             max_scans: int = 200_000) -> Run:
+    sim = GroupSim(case.group())
+    fb = st_module.new_fb("MotionJointMove")
+    inputs = case.inputs(cycle)
+    pos, vel, acc = [], [], []
+    n = case.joints
+    for k in range(1, max_scans + 1):
+        sim.call(fb, **inputs)
+        assert not fb.Error, f"ErrorId {fb.ErrorId} for {case}"
+        g = sim.group
+        pos.append(g["Position"][:n])
+        vel.append(g["Velocity"][:n])
+        acc.append(g["Acceleration"][:n])
+        if not fb.Busy:
+            assert fb.Done and g["Owner"] == 0
+            return Run(np.array(pos), np.array(vel), np.array(acc), float(fb.Duration), k)
+    raise AssertionError("still busy")
+
+
+def span(ax: AxisCase, duration: float) -> float:
+    return max(abs(ax.p0), abs(ax.pf), abs(ax.pf - ax.p0), max(ax.vmax, abs(ax.v0)) * duration,
+               1e-30)
+
+
+def check_against_ruckig(st_module: Any, case: JointCase) -> tuple[float, float]:
+    """The per-scan comparison; returns (relative duration error, worst position error as
+    a fraction of its float32 tolerance)."""
+    axes = case.axes()
+    ref = ruckig_plan(axes, "Phase")
+    assert ref.ok, ref.result
+    run = run_move(st_module, case)
+    rel = abs(run.duration - ref.duration) / ref.duration
+    assert rel <= 1e-4, (run.duration, ref.duration)
+    # the scan that ends it: the first at or past the duration (a thousandth of a scan early)
+    assert run.scans == max(1, math.ceil(ref.duration / DT32 - 1e-3))
+    worst = 0.0
+    for k in range(run.scans):
+        p, v, a = ref.at((k + 1) * DT32)
+        for j, ax in enumerate(axes):
+            tol = F32_EPS * span(ax, ref.duration)
+            err = abs(run.pos[k, j] - p[j])
+            worst = max(worst, err / tol)
+            assert err <= tol, (k, j, run.pos[k, j], p[j], tol)
+            if k < run.scans - 1:
+                assert abs(run.vel[k, j] - v[j]) <= F32_EPS * 4 * max(ax.vmax, abs(ax.v0))
+                assert abs(run.acc[k, j] - a[j]) <= F32_EPS * 4 * ax.amax + 1e-9 * ax.jmax
+    assert list(run.pos[-1]) == [f32(t) for t in case.target]
+    assert not np.any(run.vel[-1]) and not np.any(run.acc[-1])
+    return rel, worst
+
+
+def check_limits_densely(st_module: Any, case: JointCase, factor: int = 20) -> None:
+    """The same move at a cycle `factor` times shorter: every sample's velocity and
+    acceleration (the block's outputs) within the limits, the acceleration changing by at
+    most the jerk limit, and the finite differences of the positions too (float32 slack)."""
+    dt = DT / factor
+    run = run_move(st_module, case, dt)
+    axes = case.axes()
+    inside = all(ax.v0 == 0.0 or abs(ax.v0) <= ax.vmax for ax in axes)
+    for j, ax in enumerate(axes):
+        v, a = run.vel[:, j], run.acc[:, j]
+        rel = 1e-6
+        assert np.max(np.abs(a)) <= ax.amax * (1 + rel)
+        assert np.max(np.abs(np.diff(a))) <= ax.jmax * dt * (1 + 1e-4) + 4 * F32_EPS * ax.amax
+        if inside:
+            assert np.max(np.abs(v)) <= ax.vmax * (1 + rel)
+            pos = np.concatenate([[ax.p0], run.pos[:, j].astype(np.float64)])
+            quantum = float(np.spacing(np.float32(np.max(np.abs(pos))))) / dt
+            steps = np.diff(pos) / dt
+            assert np.max(np.abs(steps)) <= ax.vmax * (1 + 1e-6) + quantum
+            assert (np.max(np.abs(np.diff(steps))) <= ax.amax * dt * (1 + 1e-4) + 2 * quantum)
+
+
+# ------------------------------------------------------------------------------ profile 4
+
+
+@pytest.mark.parametrize("kind,joints,seed", [
+    ("rest", 3, 1), ("rest", 5, 2), ("moving", 3, 3), ("moving", 5, 4), ("fast", 3, 5)])
+def test_profile4_matches_ruckig(st_module: Any, figures: Any, kind: str, joints: int,
+                                 seed: int) -> None:
+    rng = random.Random(seed)
+    worst_rel = worst_pos = 0.0
+    for _ in range(6):
+        case = random_case(rng, kind, joints)
+        rel, pos = check_against_ruckig(st_module, case)
+        worst_rel, worst_pos = max(worst_rel, rel), max(worst_pos, pos)
+    figures.case("MotionJointMove")
+    figures.error("MotionJointMove", worst_pos, "of float32 tolerance vs ruckig (profile 4)")
+    print(f"profile 4, {kind}, {joints} joints: duration rel err {worst_rel:.2e}, position "
+          f"err {worst_pos:.2e} of float32 tolerance")
+
+
+@pytest.mark.parametrize("kind,seed", [("rest", 11), ("moving", 12), ("fast", 13)])
+def test_profile4_keeps_the_limits_between_scans(st_module: Any, kind: str, seed: int) -> None:
+    rng = random.Random(seed)
+    for _ in range(3):
+        check_limits_densely(st_module, random_case(rng, kind, 3))
+
+
+def test_profile4_from_rest_is_a_straight_line_in_joint_space(st_module: Any) -> None:
+    """Phase synchronisation: from rest every joint covers the same fraction of its
+    distance at every scan."""
+    case = JointCase((10.0, -40.0, 120.0, 0.0), (-50.0, 75.0, 100.0, 30.0),
+                     (150.0,) * 4, (1000.0,) * 4, 90.0, 600.0, 4000.0)
+    run = run_move(st_module, case)
+    d = np.array(case.target) - np.array(case.start)
+    frac = (run.pos - np.array(case.start)) / d
+    assert np.max(np.abs(frac - frac[:, :1])) < 1e-5
+
+
+@pytest.mark.parametrize("jerk,velocity,acceleration,target", [
+    (0.5, 100.0, 500.0, 3.0),          # tiny jerk: the move is all jerk phases
+    (1.0e9, 100.0, 500.0, 90.0),       # huge jerk: all but the trapezoid of profile 2
+    (2000.0, 0.05, 500.0, 120.0),      # very long: 2,400 s at 0.05 deg/s
+])
+def test_profile4_extreme_but_legal_limits(st_module: Any, jerk: float, velocity: float,
+                                           acceleration: float, target: float) -> None:
+    case = JointCase((0.0, 10.0, -20.0), (target, 10.0 - target / 2, -20.0 + target / 4),
+                     (150.0,) * 3, (1000.0,) * 3, velocity, acceleration, jerk)
+    axes = case.axes()
+    ref = ruckig_plan(axes, "Phase")
+    assert ref.ok
+    if ref.duration > 60.0:
+        # a long move: its plan and a scan at the end, at a 1 s cycle
+        long_case = case
+        sim = GroupSim(long_case.group())
+        fb = st_module.new_fb("MotionJointMove")
+        sim.call(fb, **long_case.inputs(1.0))
+        assert fb.Busy and abs(fb.Duration - ref.duration) <= 1e-4 * ref.duration
+        scans = 1
+        while fb.Busy:
+            g = sim.group
+            p, _, _ = ref.at(scans * 1.0)
+            for j, ax in enumerate(axes):
+                assert abs(g["Position"][j] - p[j]) <= F32_EPS * span(ax, ref.duration)
+            sim.call(fb, **long_case.inputs(1.0))
+            scans += 1
+        assert fb.Done and sim.group["Position"][:3] == [f32(t) for t in case.target]
+        return
+    check_against_ruckig(st_module, case)
+    check_limits_densely(st_module, case, factor=5)
+    if jerk > 1e8:
+        # almost the time-optimal trapezoid (profile 2) of the same limits
+        sim = GroupSim(case.group())
+        fb2 = st_module.new_fb("MotionJointMove")
+        sim.call(fb2, **{**case.inputs(), "Profile": 2})
+        assert ref.duration == pytest.approx(fb2.Duration, rel=1e-5)
+
+
+def test_profile4_takes_over_a_moving_group_without_a_jump(st_module: Any) -> None:
+    """A profile-4 move re-planned on another block while the first one is at full
+    acceleration: the second plans from the group's position, velocity and acceleration
+    (Ruckig's plan from exactly that state), and between scans the velocity changes by at
+    most the acceleration limit and the acceleration by at most the jerk limit."""
+    case = JointCase((0.0, 40.0, 95.0), (100.0, -20.0, 60.0), (150.0,) * 3, (1000.0,) * 3,
+                     120.0, 800.0, 6000.0)
+    sim = GroupSim(case.group())
+    first, second = st_module.new_fb("MotionJointMove"), st_module.new_fb("MotionJointMove")
+    acc = []
+    vel = []
+    for _ in range(12):
+        sim.call(first, **case.inputs())
+        vel.append(sim.group["Velocity"][:3])
+        acc.append(sim.group["Acceleration"][:3])
+    assert first.Busy and max(abs(a) for a in acc[-1]) > 500.0
+    g = sim.snapshot()
+    new_target = [-40.0, 10.0, 120.0]
+    axes = [AxisCase(f32(g["Position"][j]), f32(g["Velocity"][j]), f32(g["Acceleration"][j]),
+                     f32(new_target[j]), 0.0, 120.0, 800.0, 6000.0) for j in range(3)]
+    ref = ruckig_plan(axes, "Phase")
+    assert ref.ok
+    inputs2 = {**case.inputs(), "Target": new_target + [0.0] * 3}
+    scans = 0
+    while True:
+        sim.call(second, **inputs2)
+        sim.call(first, **case.inputs())
+        scans += 1
+        if scans == 1:
+            assert second.Duration == pytest.approx(ref.duration, rel=1e-4)
+            assert first.CommandAborted and not first.Busy
+        p, _, _ = ref.at(scans * DT32)
+        for j, ax in enumerate(axes):
+            assert abs(sim.group["Position"][j] - p[j]) <= F32_EPS * span(ax, ref.duration)
+        vel.append(sim.group["Velocity"][:3])
+        acc.append(sim.group["Acceleration"][:3])
+        if not second.Busy:
+            break
+    assert second.Done
+    dv = np.max(np.abs(np.diff(np.array(vel), axis=0)))
+    da = np.max(np.abs(np.diff(np.array(acc), axis=0)))
+    assert dv <= 800.0 * DT * (1 + 1e-5)
+    assert da <= 6000.0 * DT * (1 + 1e-4)
+
+
+@pytest.mark.parametrize("change,code", [
+    ({"Jerk": 0.0}, BAD_PARAMETER),
+    ({"Jerk": -5.0}, BAD_PARAMETER),
+    ({"Jerk": math.nan}, BAD_PARAMETER),
+    ({"Jerk": math.inf}, BAD_PARAMETER),
+    ({"Acceleration": 0.0}, BAD_PARAMETER),
+    ({"Acceleration": math.nan}, BAD_PARAMETER),
+    ({"Jerk": 1.0e20}, BAD_PARAMETER),                  # beyond the planner's 1E15
+    ({"Velocity": 1.0e-4}, JERK_TOO_LONG),             # 1.2E6 s at full speed
+    ({"Profile": 5}, BAD_PROFILE),
+])
+def test_profile4_bad_input_changes_nothing(st_module: Any, change: dict[str, Any],
+                                            code: int) -> None:
+    """Refused at the Execute edge, also while another profile-4 move runs: that move goes
+    on exactly as if nothing had happened."""
+    case = JointCase((0.0, 40.0, 95.0), (100.0, -20.0, 60.0), (150.0,) * 3, (1000.0,) * 3,
+                     120.0, 800.0, 6000.0)
+    fresh = GroupSim(case.group())
+    fresh.assert_rejected(st_module.new_fb("MotionJointMove"), code,
+                          **{**case.inputs(), **change})
+    calm = GroupSim(case.group())
+    busy = GroupSim(case.group())
+    a, b = st_module.new_fb("MotionJointMove"), st_module.new_fb("MotionJointMove")
+    c = st_module.new_fb("MotionJointMove")
+    for k in range(40):
+        calm.scan(a, **case.inputs())
+        busy.scan(b, **case.inputs())
+        if k == 10:
+            busy.call(c, **{**case.inputs(), **change})
+            assert c.Error and c.ErrorId == code
+    assert busy.positions == calm.positions and busy.velocities == calm.velocities
+
+
+def test_profile4_seven_thousand_six_hundred_seconds(st_module: Any) -> None:
+    """One joint, 100 deg: just under 7600 s is planned, just over refused (29)."""
+    for seconds, ok in ((7000.0, True), (7700.0, False)):
+        case = JointCase((0.0,), (100.0,), (150.0,), (1000.0,), f32(100.0 / seconds), 500.0,
+                         5000.0)
+        sim = GroupSim(case.group())
+        fb = st_module.new_fb("MotionJointMove")
+        sim.call(fb, **case.inputs())
+        assert fb.Busy == ok
+        if not ok:
+            assert fb.Error and fb.ErrorId == JERK_TOO_LONG
+        else:
+            assert fb.Duration == pytest.approx(ruckig_plan(case.axes()).duration, rel=1e-6)
+
+
+# ------------------------------------------------------------------------------ halt
+
+
+def halt_limits(v0: float, a0: float, decel: float, jerk: float) -> tuple[float, float]:
+    """The header's rule, per joint: the start acceleration within +/-D, the jerk Jerk raised
+    so that no ramp lasts more than HaltRampS, and for a joint braking already the jerk that
+    ends at rest (or acceleration 0 when that would take less than a scan)."""
+    a0 = max(-decel, min(decel, a0))
+    js = max(jerk, (abs(a0) + decel) / HALT_RAMP_S)
+    if (a0 < 0.0 <= v0) or (a0 > 0.0 >= v0):
+        if abs(a0) / DT * abs(v0) * 2.0 < a0 * a0:
+            a0 = 0.0
+            js = max(jerk, decel / HALT_RAMP_S)
+        else:
+            js = max(js, a0 * a0 / (2.0 * abs(v0)))
+    return a0, js
+
+
+@pytest.mark.parametrize("after,jerk,decel", [
+    (8, 3000.0, 1.0e6),     # accelerating hard
+    (30, 3000.0, 1.0e6),    # cruising
+    (55, 3000.0, 1.0e6),    # braking already
+    (8, 3000.0, 150.0),     # a soft stop while accelerating at 800
+    (30, 1.0e6, 400.0),     # a jerk above the ramp's
+])
+def test_jerk_halt_of_a_profile4_move(st_module: Any, after: int, jerk: float,
+                                      decel: float) -> None:
+    case = JointCase((0.0, 40.0, 95.0), (100.0, -20.0, 60.0), (150.0,) * 3, (1000.0,) * 3,
+                     120.0, 800.0, 6000.0)
+    sim = GroupSim(case.group())
+    move, halt = st_module.new_fb("MotionJointMove"), st_module.new_fb("MotionHalt")
+    for _ in range(after):
+        sim.call(move, **case.inputs())
+    assert move.Busy
+    g = sim.snapshot()
+    d = min(decel, 1000.0)
+    axes = []
+    for j in range(3):
+        v0, a0 = f32(g["Velocity"][j]), f32(g["Acceleration"][j])
+        a0, js = halt_limits(v0, a0, f32(d), f32(jerk))
+        axes.append(AxisCase(f32(g["Position"][j]), v0, a0, 0.0, 0.0, 1.0, f32(d), js))
+    refs = [ruckig_plan([ax], "None", "Velocity") for ax in axes]
+    assert all(r.ok for r in refs)
+    halt_in = {"Execute": True, "Deceleration": decel, "Jerk": jerk, "CycleTime": DT}
+    pos, vel = [list(g["Position"][:3])], [list(g["Velocity"][:3])]
+    scans = 0
+    while True:
+        sim.call(halt, **halt_in)
+        sim.call(move, **case.inputs())
+        scans += 1
+        assert move.CommandAborted
+        for j, (ax, ref) in enumerate(zip(axes, refs, strict=True)):
+            p, _, _ = ref.at(scans * DT32)
+            assert abs(sim.group["Position"][j] - p[0]) <= F32_EPS * (abs(ax.p0) + 200.0)
+        pos.append(sim.group["Position"][:3])
+        vel.append(sim.group["Velocity"][:3])
+        if not halt.Busy:
+            break
+    assert halt.Done and sim.group["Owner"] == 0
+    v = np.array(vel)
+    # no reversal, within the deceleration (after the start's own acceleration)
+    for j in range(3):
+        assert np.all(v[:, j] * v[0, j] >= -1e-9)
+        assert np.max(np.abs(np.diff(v[1:, j]))) <= d * DT * (1 + 1e-5)
+    # the bound of the header: |v0| / D + 1.5 HaltRampS, one scan for the discretisation
+    t_bound = max(abs(x) for x in v[0]) / d + 1.5 * HALT_RAMP_S
+    assert scans * DT <= t_bound + DT + 1e-9
+    assert scans == math.ceil(max(r.duration for r in refs) / DT32 - 1e-3)
+
+
+def test_jerk_halt_bad_jerk_and_refused_plan(st_module: Any) -> None:
+    case = JointCase((0.0, 40.0, 95.0), (100.0, -20.0, 60.0), (150.0,) * 3, (1000.0,) * 3,
+                     120.0, 800.0, 6000.0)
+    for jerk in (math.nan, -1.0, math.inf):
+        sim = GroupSim(case.group())
+        sim.assert_rejected(st_module.new_fb("MotionHalt"), BAD_PARAMETER, Execute=True,
+                            Deceleration=500.0, Jerk=jerk, CycleTime=DT)
+    # a jerk beyond the planner's range: the halt brakes at constant deceleration
+    runs = []
+    for jerk in (0.0, 1.0e20):
+        sim = GroupSim(case.group())
+        move, halt = st_module.new_fb("MotionJointMove"), st_module.new_fb("MotionHalt")
+        for _ in range(20):
+            sim.call(move, **case.inputs())
+        while True:
+            sim.scan(halt, Execute=True, Deceleration=500.0, Jerk=jerk, CycleTime=DT)
+            if not halt.Busy:
+                break
+        assert halt.Done and not halt.Error
+        runs.append(sim.positions)
+    assert runs[0] == runs[1]
