@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -33,6 +34,7 @@ from stepped_controller import (
     JOG_START,
     JOG_STOP,
     JOG_UPDATE,
+    JOG_WRIST,
     MOVE_JOINTS,
     MOVE_JOINTS_PROFILE,
     OK,
@@ -387,4 +389,195 @@ def test_jog_jerk_of_a_takeover_stays(bench: Bench) -> None:
     assert np.max(np.abs(np.diff(x, 3) / DT ** 3)) <= 3000.0 * 1.001 + noise
     assert bench.b.command(JOG_STOP) == OK
     bench.ctl.step(100)
+    bench.assert_safe()
+
+
+# ------------------------------------------------------------------------------ the start state
+
+
+def stage_state(bench: Bench) -> tuple[list[float], list[float]]:
+    """The output stage's five joint angles and the arm's three speeds (the wrist at rest)."""
+    deg = [float(bench.ctl.read(f"OUT{j}DEG"))
+           for j in (*ARM, "WRISTPITCH", "WRISTROLL")]
+    vel = [float(bench.ctl.read(f"OUT{j}VEL")) for j in ARM] + [0.0, 0.0]
+    return deg, vel
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One joint for Ruckig: start, target, limits."""
+
+    p0: float
+    v0: float
+    a0: float
+    pf: float
+    vmax: float
+    amax: float
+    jmax: float
+
+
+def axes_of(deg: list[float], vel: list[float], acc: list[float], target: list[float],
+            v: float, a: float, j: float) -> list[Axis]:
+    """The joints as profile 4 takes them (limits min(v, 150), min(a, 1000): the defaults;
+    the start acceleration within the limit)."""
+    vm, am = min(v, 150.0), min(a, 1000.0)
+    return [Axis(deg[k], vel[k], max(-am, min(am, acc[k])), target[k], vm, am, j)
+            for k in range(5)]
+
+
+class RuckigPlan:
+    """Ruckig's phase-synchronised trajectory (PyPI `ruckig`), the independent reference."""
+
+    def __init__(self, axes: list[Axis], velocity_interface: bool = False) -> None:
+        ruckig = pytest.importorskip("ruckig")
+        n = len(axes)
+        inp = ruckig.InputParameter(n)
+        if velocity_interface:
+            # the halt: each joint on its own, to rest (MotionHalt)
+            inp.control_interface = ruckig.ControlInterface.Velocity
+            inp.target_velocity = [0.0] * n
+        inp.current_position = [x.p0 for x in axes]
+        inp.current_velocity = [x.v0 for x in axes]
+        inp.current_acceleration = [x.a0 for x in axes]
+        inp.target_position = [x.pf for x in axes]
+        inp.max_velocity = [x.vmax for x in axes]
+        inp.max_acceleration = [x.amax for x in axes]
+        inp.max_jerk = [x.jmax for x in axes]
+        inp.synchronization = (ruckig.Synchronization.No if velocity_interface
+                               else ruckig.Synchronization.Phase)
+        self.traj = ruckig.Trajectory(n)
+        assert str(ruckig.Ruckig(n).calculate(inp, self.traj)).endswith("Working")
+        self.duration = float(self.traj.duration)
+
+    def at(self, t: float) -> tuple[list[float], list[float], list[float]]:
+        p, v, a = self.traj.at_time(t)
+        return list(p), list(v), list(a)
+
+
+def test_profile4_takeover_starts_from_the_running_moves_acceleration(bench: Bench) -> None:
+    """A profile-4 move taking over a profile-4 move the stage follows: planned from the
+    stage's angles and speeds and the running move's acceleration (Ruckig's plan of the
+    first move at that time gives it): Ruckig's duration from that state."""
+    bench.move(-40.0, 40.0, 95.0, 200)
+    deg0, vel0 = stage_state(bench)
+    first = [45.0, 110.0, 30.0, deg0[3], deg0[4]]
+    ref1 = RuckigPlan(axes_of(deg0, vel0, [0.0] * 5, first, 140.0, 900.0, 8000.0))
+    assert profile4(bench, (45.0, 110.0, 30.0), 140.0, 900.0, 8000.0) == OK
+    k = 9
+    bench.ctl.step(k - 1)
+    _, _, acc = ref1.at(k * float(np.float32(DT)))
+    assert max(abs(a) for a in acc[:3]) > 300.0  # it is accelerating
+    deg, vel = stage_state(bench)
+    second = [-20.0, 60.0, 110.0, deg[3], deg[4]]
+    ref2 = RuckigPlan(axes_of(deg, vel, acc, second, 90.0, 600.0, 3000.0))
+    assert profile4(bench, (-20.0, 60.0, 110.0), 90.0, 600.0, 3000.0, "b") == OK
+    assert float(bench.ctl.read("MOTIONDURATION")) == pytest.approx(ref2.duration, rel=1e-4)
+    run_until_idle(bench)
+    bench.assert_safe()
+
+
+def test_profile4_over_a_held_back_stage_starts_at_acceleration_zero(bench: Bench) -> None:
+    """The wrist roll limited to 20 deg/s and 20 deg/s^2 under a flange-fixed wrist jog that
+    speeds up at its own 150 deg/s^2: the stage holds the channel back. A profile-4 move to
+    where the arm stands (so the wrist roll, coming back to where the stage was, sets the
+    duration) then starts from the stage at acceleration 0, not at the jog's setpoint
+    acceleration, which the stage does not follow: Ruckig's duration from that state."""
+    roll = 4
+    assert bench.a.command(SET_MOTION_LIMITS, int1=roll, args=(20.0, 20.0)) == OK
+    bench.move(-40.0, 40.0, 95.0, 200)
+    assert bench.a.command(JOG_WRIST, int1=2, args=(0.0, 19.0, 19.0, 150.0)) == OK
+    bench.ctl.step(4)
+    assert bench.ctl.read("SLEWLIMITED") == 1
+    before = float(bench.ctl.read("OUTWRISTROLLDEG"))
+    bench.ctl.step()
+    deg, vel = stage_state(bench)
+    vel[4] = (deg[4] - before) / float(np.float32(DT))
+    assert vel[4] > 0.5
+    axes = axes_of(deg, vel, [0.0] * 5, deg, 100.0, 800.0, 5000.0)
+    axes[4] = Axis(deg[4], vel[4], 0.0, deg[4], 20.0, 20.0, 5000.0)
+    ref = RuckigPlan(axes)
+    assert profile4(bench, (deg[0], deg[1], deg[2]), 100.0, 800.0, 5000.0, "b") == OK
+    assert float(bench.ctl.read("MOTIONDURATION")) == pytest.approx(ref.duration, rel=1e-3)
+    run_until_idle(bench)
+    bench.assert_safe()
+
+
+def test_stop_of_a_quintic_move_brakes_at_constant_deceleration(bench: Bench) -> None:
+    """The jerk-limited Stop is profile 4's only: a Stop of a profile-3 move (with a jerk of
+    3000) brakes as before, its step dropping by the full D g dt^2 from the first scan."""
+    bench.move(-40.0, 40.0, 95.0, 200)
+    assert bench.a.command(MOVE_JOINTS_PROFILE, int1=3,
+                           args=(45.0, 110.0, 30.0, 140.0, 900.0, 3000.0)) == OK
+    bench.ctl.step(60)
+    s0 = bench.out.steps[0]
+    assert abs(s0) > 0.5
+    assert bench.b.command(STOP) == OK
+    s1 = bench.out.steps[0]
+    bench.ctl.step()
+    s2 = bench.out.steps[0]
+    g_dt2 = US_PER_DEG * 1000.0 * DT ** 2  # the base's full deceleration per scan, us
+    assert abs((s2 - s1) + np.sign(s0) * g_dt2) < 0.02 * g_dt2, (s0, s1, s2, g_dt2)
+    bench.ctl.step(300)
+    bench.assert_safe()
+
+
+def halt_axis(p0: float, v0: float, a0: float, decel: float, jerk: float) -> Axis:
+    """One joint of the jerk-limited Stop as MotionHalt's header plans it: the acceleration
+    within +/-D, the jerk raised so that no ramp lasts over 0.02 s, a braking joint's jerk
+    ending at rest (acceleration 0 when that would take less than a scan)."""
+    a0 = max(-decel, min(decel, a0))
+    js = max(jerk, (abs(a0) + decel) / HALT_RAMP_S)
+    if (a0 < 0.0 <= v0) or (a0 > 0.0 >= v0):
+        if abs(a0) / float(np.float32(DT)) * abs(v0) * 2.0 < a0 * a0:
+            a0, js = 0.0, max(jerk, decel / HALT_RAMP_S)
+        else:
+            js = max(js, a0 * a0 / (2.0 * abs(v0)))
+    return Axis(p0, v0, a0, 0.0, 1.0e3, decel, js)
+
+
+@pytest.mark.parametrize("after,soft", [(6, False), (20, False), (45, False), (6, True),
+                                        (30, True)])
+def test_stop_of_a_profile4_move_is_ruckigs_braking(bench: Bench, after: int,
+                                                    soft: bool) -> None:
+    """The Stop's braking, joint by joint, is Ruckig's velocity interface from the stage's
+    angle, its speed taken half a scan on at the move's acceleration (the move's own plan,
+    Ruckig's, gives that acceleration) and that acceleration, with the Stop's limits: the
+    stage follows it scan by scan (its angles within 2e-3 deg of Ruckig's). Then a second,
+    harder Stop while it brakes: the braking goes on jerk-limited (the same rule from where
+    it is, at the harder deceleration)."""
+    bench.move(-40.0, 40.0, 95.0, 200)
+    deg0, vel0 = stage_state(bench)
+    target = [45.0, 110.0, 30.0, deg0[3], deg0[4]]
+    ref1 = RuckigPlan(axes_of(deg0, vel0, [0.0] * 5, target, 140.0, 800.0, 6000.0))
+    assert profile4(bench, (45.0, 110.0, 30.0), 140.0, 800.0, 6000.0) == OK
+    bench.ctl.step(after - 1)
+    dt32 = float(np.float32(DT))
+    _, _, acc = ref1.at(after * dt32)
+    deg, vel = stage_state(bench)
+    decel = 150.0 if soft else 1000.0
+    axes = [halt_axis(deg[j], vel[j] + max(-decel, min(decel, acc[j])) * dt32 / 2.0, acc[j],
+                      decel, 6000.0) for j in range(3)]
+    refs = [RuckigPlan([ax], velocity_interface=True) for ax in axes]
+    assert bench.b.command(STOP, args=(150.0 if soft else 0.0,)) == OK
+    worst = 0.0
+    for m in range(1, 16):
+        now, _ = stage_state(bench)
+        for j in range(3):
+            p, _, _ = refs[j].at(m * dt32)
+            worst = max(worst, abs(now[j] - p[0]))
+        bench.ctl.step()
+    assert worst < 2e-3, worst
+    if soft and after >= 20:
+        # the harder Stop while the base still brakes at 150: from where it is at
+        # 1000 deg/s^2, still ramping (the jerk of the braking it takes over)
+        assert bench.out.steps[0] != 0.0
+        w = Watch(bench)
+        assert bench.a.command(STOP, args=(0.0,)) == OK
+        bench.ctl.step(150)
+        x = np.array(w.out)[:, 0].astype(np.float64)
+        acc_k = np.diff(x, 2) / DT ** 2
+        jumps = np.abs(np.diff(acc_k[:40])) / DT
+        assert np.max(jumps) <= (150.0 + 1000.0) / HALT_RAMP_S * 1.05 + 2e-3 / DT ** 3, \
+            np.max(jumps)
+    bench.ctl.step(200)
     bench.assert_safe()

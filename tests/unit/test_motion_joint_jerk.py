@@ -38,7 +38,7 @@ from joint_jerk_support import (
     run_move,
     span,
 )
-from motion_support import BAD_PARAMETER, BAD_PROFILE, GroupSim
+from motion_support import BAD_PARAMETER, BAD_PROFILE, GroupSim, make_group
 
 ruckig = pytest.importorskip("ruckig")
 
@@ -176,6 +176,9 @@ def test_profile4_takes_over_a_moving_group_without_a_jump(st_module: Any) -> No
     ({"Acceleration": math.nan}, BAD_PARAMETER),
     ({"Jerk": 1.0e20}, BAD_PARAMETER),                  # beyond the planner's 1E15
     ({"Velocity": 1.0e-4}, JERK_TOO_LONG),             # 1.2E6 s at full speed
+    # the planner would fail (27, as Ruckig); while another move runs the start is faster
+    # than 1e-30 deg/s and the block cannot tell the move too long before planning: 27
+    ({"Velocity": 1.0e-30}, JERK_TOO_LONG),
     ({"Profile": 5}, BAD_PROFILE),
 ])
 def test_profile4_bad_input_changes_nothing(st_module: Any, change: dict[str, Any],
@@ -196,36 +199,45 @@ def test_profile4_bad_input_changes_nothing(st_module: Any, change: dict[str, An
         busy.scan(b, **case.inputs())
         if k == 10:
             busy.call(c, **{**case.inputs(), **change})
-            assert c.Error and c.ErrorId == code
+            busy_code = 27 if change.get("Velocity") == 1.0e-30 else code
+            assert c.Error and c.ErrorId == busy_code
     assert busy.positions == calm.positions and busy.velocities == calm.velocities
 
 
-def test_profile4_seven_thousand_six_hundred_seconds(st_module: Any) -> None:
-    """One joint, 100 deg: just under 7600 s is planned, just over refused (29)."""
-    for seconds, ok in ((7000.0, True), (7700.0, False)):
-        case = JointCase((0.0,), (100.0,), (150.0,), (1000.0,), f32(100.0 / seconds), 500.0,
-                         5000.0)
-        sim = GroupSim(case.group())
-        fb = st_module.new_fb("MotionJointMove")
-        sim.call(fb, **case.inputs())
-        assert fb.Busy == ok
-        if not ok:
-            assert fb.Error and fb.ErrorId == JERK_TOO_LONG
-        else:
-            assert fb.Duration == pytest.approx(ruckig_plan(case.axes()).duration, rel=1e-6)
+@pytest.mark.parametrize("seconds,acceleration,ok", [
+    (7000.0, 500.0, True), (7700.0, 500.0, False),
+    # 7,590 s at full speed, and 1,318 s more to reach it: refused after planning
+    (7590.0, 1.0e-5, False)])
+def test_profile4_seven_thousand_six_hundred_seconds(st_module: Any, seconds: float,
+                                                     acceleration: float, ok: bool) -> None:
+    """One joint, 100 deg (the planner itself limits only several): just under 7600 s is
+    planned, just over refused (29)."""
+    case = JointCase((0.0,), (100.0,), (150.0,), (1000.0,), f32(100.0 / seconds),
+                     acceleration, 5000.0)
+    sim = GroupSim(case.group())
+    fb = st_module.new_fb("MotionJointMove")
+    sim.call(fb, **case.inputs())
+    assert fb.Busy == ok
+    ref = ruckig_plan(case.axes())
+    assert ref.ok and (ref.duration <= 7600.0) == ok
+    if not ok:
+        assert fb.Error and fb.ErrorId == JERK_TOO_LONG
+    else:
+        assert fb.Duration == pytest.approx(ref.duration, rel=1e-6)
 
 
 # ------------------------------------------------------------------------------ halt
 
 
-def halt_limits(v0: float, a0: float, decel: float, jerk: float) -> tuple[float, float]:
+def halt_limits(v0: float, a0: float, decel: float, jerk: float,
+                cycle: float = DT) -> tuple[float, float]:
     """The header's rule, per joint: the start acceleration within +/-D, the jerk Jerk raised
     so that no ramp lasts more than HaltRampS, and for a joint braking already the jerk that
     ends at rest (or acceleration 0 when that would take less than a scan)."""
     a0 = max(-decel, min(decel, a0))
     js = max(jerk, (abs(a0) + decel) / HALT_RAMP_S)
     if (a0 < 0.0 <= v0) or (a0 > 0.0 >= v0):
-        if abs(a0) / DT * abs(v0) * 2.0 < a0 * a0:
+        if abs(a0) / f32(cycle) * abs(v0) * 2.0 < a0 * a0:
             a0 = 0.0
             js = max(jerk, decel / HALT_RAMP_S)
         else:
@@ -306,3 +318,65 @@ def test_jerk_halt_bad_jerk_and_refused_plan(st_module: Any) -> None:
         assert halt.Done and not halt.Error
         runs.append(sim.positions)
     assert runs[0] == runs[1]
+
+
+@pytest.mark.parametrize("acc0", [2400.0, -2400.0, math.nan])
+def test_profile4_takes_the_group_acceleration_within_the_limit(st_module: Any,
+                                                                acc0: float) -> None:
+    """A group acceleration beyond the move's limit (another generator's, noisy or stale)
+    starts the move at the limit; a NaN one at 0: Ruckig's plan from that start, no
+    braking for an acceleration the move never had."""
+    case = JointCase((0.0, 40.0, 95.0), (100.0, -20.0, 60.0), (150.0,) * 3, (1000.0,) * 3,
+                     120.0, 800.0, 6000.0, (30.0, -20.0, 10.0), (acc0, acc0, acc0))
+    expected_a0 = 0.0 if math.isnan(acc0) else math.copysign(800.0, acc0)
+    axes = [AxisCase(ax.p0, ax.v0, expected_a0, ax.pf, 0.0, ax.vmax, ax.amax, ax.jmax)
+            for ax in case.axes()]
+    ref = ruckig_plan(axes, "Phase")
+    sim = GroupSim(case.group())
+    fb = st_module.new_fb("MotionJointMove")
+    sim.call(fb, **case.inputs())
+    assert fb.Busy and fb.Duration == pytest.approx(ref.duration, rel=1e-6)
+    p, _, _ = ref.at(DT32)
+    assert sim.group["Position"][:3] == pytest.approx(p, abs=1e-4)
+
+
+def test_profile4_longer_than_two_to_the_24_scans_is_refused(st_module: Any) -> None:
+    """At a 0.1 ms cycle 2^24 scans are 1,678 s: a 2,000 s move (inside Ruckig's 7,600 s)
+    is refused (8), a 1,500 s one planned."""
+    for seconds, ok in ((1500.0, True), (2000.0, False)):
+        case = JointCase((0.0,), (100.0,), (150.0,), (1000.0,), f32(100.0 / seconds), 500.0,
+                         5000.0)
+        sim = GroupSim(case.group())
+        fb = st_module.new_fb("MotionJointMove")
+        sim.call(fb, **case.inputs(1.0e-4))
+        assert fb.Busy == ok and fb.Error == (not ok)
+        if not ok:
+            assert fb.ErrorId == BAD_PARAMETER
+
+
+@pytest.mark.parametrize("cycle,v0", [(0.001, 0.5), (0.01, 1.0)],
+                         ids=["jerk_that_ends_at_rest", "within_a_scan_from_zero"])
+def test_jerk_halt_of_a_joint_braking_hard_never_reverses(st_module: Any, cycle: float,
+                                                          v0: float) -> None:
+    """A joint at 0.5 (1) deg/s braking at 800 deg/s^2: ramping that to 0 at the 0.02 s
+    ramp's jerk would reverse it by 3.6 deg/s. At a 1 ms cycle the halt takes the jerk that
+    ends the braking at rest (Ruckig's plan with it); at 10 ms that ramp is shorter than a
+    scan and the halt starts from acceleration 0. Never a reversal either way."""
+    g = make_group([10.0, 0.0, 0.0], max_vel=150.0, max_acc=1000.0)
+    g["Velocity"][0], g["Acceleration"][0] = v0, -800.0
+    sim = GroupSim(g)
+    halt = st_module.new_fb("MotionHalt")
+    a0, js = halt_limits(v0, -800.0, 1000.0, 3000.0, cycle)
+    ref = ruckig_plan([AxisCase(10.0, v0, a0, 0.0, 0.0, 1.0, 1000.0, js)], "None", "Velocity")
+    assert ref.ok
+    cyc32 = f32(cycle)
+    k = 0
+    while True:
+        sim.scan(halt, Execute=True, Deceleration=1.0e6, Jerk=3000.0, CycleTime=cycle)
+        k += 1
+        p, v, _ = ref.at(k * cyc32)
+        assert sim.group["Position"][0] == pytest.approx(p[0], abs=2e-6)
+        assert sim.group["Velocity"][0] >= 0.0
+        if not halt.Busy:
+            break
+    assert halt.Done and k <= math.ceil(ref.duration / cyc32 - 1e-3)

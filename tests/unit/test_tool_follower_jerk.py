@@ -152,3 +152,24 @@ def test_goal_jump_inside_the_braking_distance_lands_without_overshoot(st_module
         angles.append(math.degrees(rot(fb.Orientation).magnitude()))
     assert max(angles) <= now + 1.0 + 1e-4
     assert angles[-1] == pytest.approx(now + 1.0, abs=1e-4) and not fb.Tracking
+
+
+def test_a_braking_state_never_turns_away_from_a_far_goal(st_module: Any) -> None:
+    """A turning state the plans never make but REAL rounding could leave (0.2 deg/s while
+    braking at 400 deg/s^2) with the goal far ahead: the plan from it would dip backwards;
+    the follower instead holds for that call and starts again from rest, turning towards
+    the goal in every call after it (never away, never stalled)."""
+    fb = st_module.new_fb("ToolOrientationFollower")
+    fb(Enable=True, Reset=True, InitialQuat=IDENT, Target=IDENT, MountOffset=IDENT,
+       DeadBandDeg=0.0, MaxRateDps=90.0, MaxAccDps2=400.0, CycleTimeS=0.01,
+       MaxJerkDps3=3000.0)
+    goal = Rotation.from_rotvec(math.radians(60.0) * AXIS)
+    fb(Reset=False, Target=quat(goal))
+    fb.SpeedDps = 0.2
+    fb.AccDps2 = -400.0
+    last = (goal.inv() * rot(fb.Orientation)).magnitude()
+    for k in range(30):
+        fb(Reset=False, Target=quat(goal))
+        now = (goal.inv() * rot(fb.Orientation)).magnitude()
+        assert now <= last if k == 0 else now < last, (k, math.degrees(last), math.degrees(now))
+        last = now
