@@ -7,10 +7,10 @@
 2. The library as the controller ships it (``armbench export`` of st/*.st and
    plc_project/Controller.st, written to a temporary folder) builds on OpenPLC: the jerk
    blocks the controller uses (all but MotionJerkOnline.st: profile 4, the jerk-limited
-   halt, jog and follow) included.
+   halt, jog and follow) included. (An array element passed as a FUNCTION's VAR_IN_OUT made
+   MatIEC emit C that does not compile; MotionJerkPlanner works on a copy.)
 3. MotionJointMove's profile 4 and MotionHalt's jerk-limited braking run on OpenPLC's build
-   as on the bench compiler, and the move equals Ruckig's. (An array element passed as a FUNCTION's VAR_IN_OUT made MatIEC emit C that does
-   not compile; MotionJerkPlanner works on a copy.)
+   as on the bench compiler, and the move equals Ruckig's.
 
 Skips where the real toolchain is absent (MATIEC_CHECK=/opt/realplc/check-st.sh).
 """
