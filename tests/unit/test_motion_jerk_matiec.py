@@ -18,14 +18,13 @@ Skips where the real toolchain is absent (MATIEC_CHECK=/opt/realplc/check-st.sh)
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import subprocess
 from pathlib import Path
-from typing import Any
 
 import pytest
 from jerk_support import AxisCase, ruckig_plan
+from matiec_run import SKIP_REASON, first_scan_both, run_tool
 
 REPO = Path(__file__).resolve().parents[2]
 ST = REPO / "st"
@@ -43,14 +42,6 @@ TIMES = (0.3, 1.1, 2.5)
 def _check_tool() -> Path | None:
     check = os.environ.get("MATIEC_CHECK")
     return Path(check) if check and Path(check).is_file() else None
-
-
-def _run_tool() -> Path | None:
-    check = _check_tool()
-    if check is None:
-        return None
-    run = Path(os.environ.get("MATIEC_RUN", check.with_name("run-st.sh")))
-    return run if run.is_file() else None
 
 
 def _lreal(x: float) -> str:
@@ -172,28 +163,10 @@ def _ruckig_generator() -> tuple[float, float, float]:
     return out.new_position[0], out.new_velocity[1], out.new_acceleration[2]
 
 
-@pytest.mark.skipif(_run_tool() is None, reason="MATIEC_CHECK (e.g. /opt/realplc/check-st.sh) "
-                    "with run-st.sh beside it not set or missing")
+@pytest.mark.skipif(run_tool() is None, reason=SKIP_REASON)
 def test_real_matiec_runs_the_planner_and_generator(tmp_path: Path) -> None:
     pytest.importorskip("ruckig")
-    from armbench.compiler import compile_files
-
-    run_st = _run_tool()
-    assert run_st is not None
-    program = tmp_path / "jerk_main.st"
-    program.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in FILES)
-                       + "\n" + _program(), encoding="utf-8")
-    bash = shutil.which("bash") or "/bin/bash"
-    run = subprocess.run([bash, str(run_st), "-n", "1", str(program)], capture_output=True,
-                         text=True, timeout=600, check=False)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    real = {k.upper(): v for k, v in
-            re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M)}
-
-    mod = compile_files([program])
-    prog: Any = mod.instance("instance0")
-    mod.config_init()
-    mod.run_task_index(0, 0)
+    real, prog = first_scan_both(tmp_path, "jerk_main.st", FILES, _program())
     names = ["DUR", "JOGDUR", "JOGEND", "GENP1", "GENV2", "GENA3"] + [
         f"S{i}A{k}" for i in range(len(TIMES)) for k in range(1, 4)]
     for n in names:
@@ -299,30 +272,14 @@ END_CONFIGURATION
 """
 
 
-@pytest.mark.skipif(_run_tool() is None, reason="MATIEC_CHECK (e.g. /opt/realplc/check-st.sh) "
-                    "with run-st.sh beside it not set or missing")
+@pytest.mark.skipif(run_tool() is None, reason=SKIP_REASON)
 def test_real_matiec_runs_profile4_and_the_jerk_halt(tmp_path: Path) -> None:
     """MotionJointMove's profile 4 and MotionHalt's jerk-limited braking built by OpenPLC's
     MatIEC: the same REAL setpoints as the bench compiler's (to float32 rounding) and, for
     the move, Ruckig's."""
     pytest.importorskip("ruckig")
-    from armbench.compiler import compile_files
-
-    run_st = _run_tool()
-    assert run_st is not None
-    program = tmp_path / "joint_main.st"
-    program.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in JOINT_FILES)
-                       + "\n" + _joint_program(), encoding="utf-8")
-    bash = shutil.which("bash") or "/bin/bash"
-    run = subprocess.run([bash, str(run_st), "-n", "1", str(program)], capture_output=True,
-                         text=True, timeout=900, check=False)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    real = {k.upper(): v for k, v in
-            re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M)}
-    mod = compile_files([program])
-    prog: Any = mod.instance("instance0")
-    mod.config_init()
-    mod.run_task_index(0, 0)
+    real, prog = first_scan_both(tmp_path, "joint_main.st", JOINT_FILES, _joint_program(),
+                                 timeout=900)
     names = ["DUR"] + [f"{p}{m}J{j}" for p in "MH" for m in (5, 20, 40) for j in range(1, 4)]
     for n in names:
         assert float(real[n]) == pytest.approx(float(prog.get(n)), rel=2e-7, abs=1e-5), n
