@@ -25,6 +25,7 @@ from .compiler.diagnostics import Diagnostic, Diagnostics
 from .compiler.driver import Analysis, analyse_program, expand
 from .compiler.emit_c import emit
 from .compiler.symbols import CheckedProgram
+from .compiler.targets import OPENPLC_ONLY, TARGET_NAMES, Target
 from .compiler.uses import Library
 from .demo_options import add_demo_arguments, add_follow_arguments
 from .faults import PlcFault
@@ -80,11 +81,13 @@ def _select(args: argparse.Namespace) -> LibrarySelection:
     return select_library(_given(args.files), not args.no_library)
 
 
-def _analyse(args: argparse.Namespace) -> tuple[LibrarySelection, Analysis]:
-    """The given files checked with what they use of the library; a note (stderr) names the
-    program's declarations that library declarations it uses get instead of their own."""
+def _analyse(args: argparse.Namespace, target: Target = OPENPLC_ONLY
+             ) -> tuple[LibrarySelection, Analysis]:
+    """The given files checked with what they use of the library, for ``target`` (build, run
+    and serve compile what OpenPLC runs); a note (stderr) names the program's declarations
+    that library declarations it uses get instead of their own."""
     selection = _select(args)
-    analysis = analyse_program(selection.given, selection.library)
+    analysis = analyse_program(selection.given, selection.library, target)
     note = analysis.library.note()
     if note is not None and analysis.program is not None:  # else E0213 says it
         print(f"armbench: note: {note}", file=sys.stderr)
@@ -126,18 +129,20 @@ def _library_hint(diags: Sequence[Diagnostic]) -> str | None:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
+    target = Target.named(args.target)
     if args.files:
-        selection, analysis = _analyse(args)
+        selection, analysis = _analyse(args, target)
         files, library = selection.given, len(analysis.library.files)
     else:  # the library and the controller the tools use
         files, library = default_project().sources(), -1
-        analysis = analyse_program(files)
+        analysis = analyse_program(files, target=target)
     prog, diags = analysis.program, analysis.diagnostics
     items = diags.sorted()
     for d in items:
         print(d.render())
     errors = sum(d.severity == "error" for d in items)
-    notes = len(items) - errors
+    warnings = sum(d.severity == "warning" for d in items)
+    notes = len(items) - errors - warnings
     n_files = len(files) + max(library, 0)
     what = f"{n_files} file{'s' if n_files != 1 else ''}"
     if library > 0:
@@ -147,6 +152,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     if prog is not None:
         what += f", {len(prog.pous)} POU{'s' if len(prog.pous) != 1 else ''}"
     summary = f"checked {what}: {errors} error{'s' if errors != 1 else ''}"
+    if warnings:
+        summary += f", {warnings} warning{'s' if warnings != 1 else ''}"
     if notes:
         summary += f", {notes} note{'s' if notes != 1 else ''}"
     print(summary, file=sys.stderr)
@@ -434,6 +441,10 @@ def make_parser() -> argparse.ArgumentParser:
     c.add_argument("files", nargs="*", help=".st files or folders (default: the armbench "
                    "library and plc_project/Controller.st)")
     _library_option(c)
+    c.add_argument("--target", choices=TARGET_NAMES, default="all",
+                   help="the dialects to check for: openplc (MatIEC), codesys (IEC 61131-3 "
+                   "3rd edition, CODESYS, TwinCAT, RuSTy) or all (default); what only the "
+                   "others refuse is a warning")
     c.set_defaults(func=cmd_check)
     b = sub.add_parser("build", help="compile to a cached shared library")
     b.add_argument("files", nargs="+")

@@ -945,7 +945,9 @@ class ArmControllerClient:
     def move_joints_profile(self, target: Vec3, profile: int, velocity: float,
                             acceleration: float, jerk: float = 0.0,
                             wait: bool = False) -> Status:
-        """MoveJointsProfile: joint move with profile 0..3 (MotionJointMove), deg and s."""
+        """MoveJointsProfile: joint move with profile 0..4 (MotionJointMove: 0 constant speed
+        per joint, 1 synchronised constant speed, 2 trapezoid, 3 quintic, 4 time-optimal
+        jerk-limited), deg and s."""
         return self._motion_command(CMD_MOVE_JOINTS_PROFILE, (profile, 0),
                                     (*target, velocity, acceleration, jerk), wait)
 
@@ -957,11 +959,13 @@ class ArmControllerClient:
                                     (*target, velocity, acceleration, fineness), wait)
 
     def jog_start(self, stick: Vec3, max_speed: float, acceleration: float,
-                  elbow_down: bool = False) -> Status:
+                  elbow_down: bool = False, jerk: float = 0.0) -> Status:
         """JogStart: jog along the stick (-1..+1 per axis); keep it alive with
-        :meth:`jog_update` more often than every ``JOG_DEADMAN_SCANS`` scans."""
+        :meth:`jog_update` more often than every ``JOG_DEADMAN_SCANS`` scans. ``jerk``
+        (mm/s^3): 0 = the acceleration-limited jog; > 0 (up to 1e7) its starts, stops and
+        changes of direction are jerk-limited too."""
         return self._motion_command(CMD_JOG_START, (0, int(elbow_down)),
-                                    (*stick, max_speed, acceleration), False)
+                                    (*stick, max_speed, acceleration, jerk), False)
 
     def jog_update(self, stick: Vec3) -> Status:
         return self.command(CMD_JOG_UPDATE, args=stick)
@@ -1274,17 +1278,20 @@ class ArmControllerClient:
 
     def follow_imu(self, *, flange_fixed: bool = False, dead_band_deg: float = 0.0,
                    max_rate_dps: float = 0.0, heading_deg: float = 0.0,
-                   mount_rpy_deg: Sequence[float] = (0.0, 0.0, 0.0)) -> Status:
+                   mount_rpy_deg: Sequence[float] = (0.0, 0.0, 0.0),
+                   max_jerk_dps3: int = 0) -> Status:
         """FollowImu start: the tool follows the fused orientation, holding the tool tip (or,
         ``flange_fixed``, the flange point) where it stands. ``heading_deg``: the arm's X axis
         from magnetic north, counter-clockwise about Z up. ``mount_rpy_deg``: the sensor's
         mounting (Z-Y-X roll, pitch, yaw). 0.0 dead band / rate = the defaults (2 deg,
-        90 deg/s). A motion of this client: ``error_id`` 0 = following."""
+        90 deg/s). ``max_jerk_dps3``: 0 = the turning speed is acceleration-limited only;
+        1..1000000 deg/s^3 jerk-limits it too. A motion of this client: ``error_id`` 0 =
+        following."""
         if len(mount_rpy_deg) != 3:
             raise ValueError(f"follow_imu: mount_rpy_deg needs roll, pitch, yaw, got "
                              f"{len(mount_rpy_deg)} values")
         flags = FOLLOW_FLAG_START | (FOLLOW_FLAG_FLANGE_FIXED if flange_fixed else 0)
-        return self._motion_command(CMD_FOLLOW_IMU, (flags, 0),
+        return self._motion_command(CMD_FOLLOW_IMU, (flags, max_jerk_dps3),
                                     (dead_band_deg, max_rate_dps, heading_deg,
                                      *mount_rpy_deg), False)
 

@@ -273,6 +273,7 @@ class FollowRun:
     error_deg: FloatArray  # angle between hand_dir and arm_dir
     drift_mm: FloatArray  # held point (tip or flange) from where it stood at the start
     joints: FloatArray  # N x 5 deg
+    setpoints: FloatArray  # N x 5 deg, the group's setpoints the follow wrote
     flange_fixed: bool
     heading_deg: float
     rate_hz: float
@@ -298,6 +299,7 @@ def analyse(rows: Sequence[ScanRow], record: ImuRecord, heading_deg: float,
                      arm_pitch=ap, arm_roll=ar,
                      error_deg=angle_deg(hand_x, arm_x),
                      drift_mm=np.linalg.norm(held - held[0], axis=1), joints=joints,
+                     setpoints=np.array([r.setpoints for r in rows], dtype=np.float64),
                      flange_fixed=flange_fixed, heading_deg=heading_deg,
                      rate_hz=1.0 / record.period_s)
 
@@ -320,10 +322,11 @@ def scans_per_sample(rate_hz: float) -> int:
 def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20.0,
                heading_deg: float = 10.0, flange_fixed: bool = False, seed: int = 5,
                lead_s: float = 0.5, trajectory: HandTrajectory | None = None,
-               rate_hz: float = 100.0) -> FollowRun:
+               rate_hz: float = 100.0, max_jerk_dps3: int = 0) -> FollowRun:
     """Start pose, Madgwick MARG filter started at the hand's true orientation, ``lead_s`` of
     samples, then FollowImu for ``duration_s`` while the hand moves; returns the figures.
-    ``rate_hz``: the IMU's sample rate, 100 Hz divided by a whole number of scans."""
+    ``rate_hz``: the IMU's sample rate, 100 Hz divided by a whole number of scans;
+    ``max_jerk_dps3``: FollowImu's jerk limit of the turning speed (0 = none)."""
     spacing = scans_per_sample(rate_hz)
     traj = trajectory or demo_trajectory(heading_deg)
     record = simulate(traj, ImuModel(), duration_s=duration_s + lead_s + 0.5, rate_hz=rate_hz,
@@ -338,7 +341,8 @@ def run_follow(address: tuple[str, int], rig: HandRig, *, duration_s: float = 20
         rig.play(record, 1, spacing)
         rig.wait_samples(lead)
         rig.start_recording()
-        st = c.follow_imu(flange_fixed=flange_fixed, heading_deg=heading_deg)
+        st = c.follow_imu(flange_fixed=flange_fixed, heading_deg=heading_deg,
+                          max_jerk_dps3=max_jerk_dps3)
         if st.error_id != ERR_OK:
             rig.pause()
             raise CommandRejected("FollowImu", st.error_id)

@@ -51,7 +51,7 @@ def st_samples(module: Any, record: ImuRecord,
                calibration: dict[str, Any] | None = None) -> list[dict[str, Any]]:
     """ImuSample dicts from the ST ImuRawToSample, one per record sample."""
     cal = record.model.calibration() if calibration is None else calibration
-    return [module.call("ImuRawToSample", Raw=raw_dict(record, k), Cal=cal)
+    return [module.call("ImuRawToSample", Raw=raw_dict(record, k), Calibration=cal)
             for k in range(len(record))]
 
 

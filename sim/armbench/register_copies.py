@@ -145,9 +145,9 @@ COPY_OUT: Final[tuple[Section, ...]] = (
         ("ImuFilter", "Imu.Filter"),
         ("ImuGain", "Imu.Gain"),
         ("ImuPeriodS", "Imu.PeriodS"),
-        *((f"ImuGyroBias{a}", f"Imu.Cal.GyroBiasDps.{a}") for a in "XYZ"),
-        *((f"ImuAccelScale{a}", f"Imu.Cal.AccelScale{a}") for a in "XYZ"),
-        *((f"ImuMagOffset{a}", f"Imu.Cal.MagOffsetGauss.{a}") for a in "XYZ"),
+        *((f"ImuGyroBias{a}", f"Imu.Calibration.GyroBiasDps.{a}") for a in "XYZ"),
+        *((f"ImuAccelScale{a}", f"Imu.Calibration.AccelScale{a}") for a in "XYZ"),
+        *((f"ImuMagOffset{a}", f"Imu.Calibration.MagOffsetGauss.{a}") for a in "XYZ"),
         ("ImuLastSeq", "Imu.LastSeq"),
     )),
     ("FOLLOW (FollowImu)", (

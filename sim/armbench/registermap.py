@@ -26,6 +26,7 @@ from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
 from .compiler.symbols import CheckedProgram, InstanceModel, PouSym, VarSym
+from .compiler.targets import OPENPLC_ONLY
 from .compiler.types import StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
@@ -141,7 +142,7 @@ def _group_and_comment(lines: Sequence[str], line: int) -> tuple[str, str]:
 
 def _analysed(paths: Sequence[str | Path],
               instance: str | None) -> tuple[CheckedProgram, InstanceModel]:
-    prog, diags = analyse(list(paths))
+    prog, diags = analyse(list(paths), target=OPENPLC_ONLY)
     if prog is None:
         raise CompileFailed(diags.sorted())
     if prog.config is None or not prog.config.instances:
@@ -243,7 +244,7 @@ def program_map(source: CheckedProgram | Sequence[str | Path],
     if isinstance(source, CheckedProgram):
         prog = source
     else:
-        checked, diags = analyse(list(source))
+        checked, diags = analyse(list(source), target=OPENPLC_ONLY)
         if checked is None:
             raise CompileFailed(diags.sorted())
         prog = checked

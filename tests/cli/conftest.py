@@ -10,7 +10,7 @@ PROGRAM = """
 PROGRAM Main
 VAR
   n : DINT;
-  r : REAL := 0.5;
+  rate : REAL := 0.5;
 END_VAR
 VAR
   out AT %QW2 : INT;
@@ -18,7 +18,7 @@ VAR
 END_VAR
   n := n + 1;
   out := DINT_TO_INT(n);
-  val := r * DINT_TO_REAL(n);
+  val := rate * DINT_TO_REAL(n);
 END_PROGRAM
 CONFIGURATION Config0
   RESOURCE Res0 ON PLC

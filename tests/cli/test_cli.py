@@ -18,11 +18,31 @@ from armbench.cli import main
 def test_check_ok_and_error(prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", str(prog)]) == 0
     bad = tmp_path / "bad.st"
-    bad.write_text(prog.read_text().replace("r * DINT_TO_REAL(n)", "r * n"))
+    bad.write_text(prog.read_text().replace("rate * DINT_TO_REAL(n)", "rate * n"))
     assert main(["check", str(bad)]) == 1
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1 and out[0].startswith(f"{bad}:13:")
     assert "error[E0300]" in out[0]
+
+
+def test_check_target(prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A name CODESYS reserves: an error for codesys and all (the default), a warning that
+    does not fail the check for openplc."""
+    bit = tmp_path / "bit.st"
+    bit.write_text(prog.read_text().replace("rate", "Bit"))
+    for target, rc, severity in ((None, 1, "error"), ("all", 1, "error"),
+                                 ("codesys", 1, "error"), ("openplc", 0, "warning")):
+        option = [] if target is None else ["--target", target]
+        assert main(["check", *option, str(bit)]) == rc
+        out, err = capsys.readouterr()
+        lines = out.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"{bit}:5:3: {severity}[E0214]: "
+                                                       "variable 'Bit' is a data type of "
+                                                       "CODESYS and TwinCAT"), out
+        assert err.strip().endswith(": 1 error" if rc else ": 0 errors, 1 warning"), err
+    assert main(["check", "--target", "twincat", str(bit)]) == 2
+    assert "invalid choice: 'twincat'" in capsys.readouterr().err
+    assert main(["check", "--target", "codesys", str(prog)]) == 0
 
 
 def test_usage_errors_exit_2(tmp_path: Path) -> None:

@@ -102,7 +102,7 @@ def _const_sum(n: int) -> str:  # a constant initial value folded by the checker
 
 
 def _real_sum(n: int) -> str:
-    return _main("r := " + " + ".join(["r"] * n) + ";", decls="  r : REAL;\n")
+    return _main("acc := " + " + ".join(["acc"] * n) + ";", decls="  acc : REAL;\n")
 
 
 def _calls(n: int) -> str:
@@ -130,14 +130,14 @@ def _struct_fields(n: int) -> str:
     types = f"TYPE\n  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\n" + "".join(
         f"  Lvl{k} : STRUCT\n    f : Lvl{k + 1};\n  END_STRUCT;\n"
         for k in range(n - 1, -1, -1)) + "END_TYPE\n"
-    return _main("x := s" + ".f" * n + ".v;", decls="  s : Lvl0;\n", before=types)
+    return _main("x := top" + ".f" * n + ".v;", decls="  top : Lvl0;\n", before=types)
 
 
 def _struct_arrays(n: int) -> str:
     types = f"TYPE\n  Lvl{n} : STRUCT\n    v : DINT;\n  END_STRUCT;\n" + "".join(
         f"  Lvl{k} : STRUCT\n    f : ARRAY[0..1] OF Lvl{k + 1};\n  END_STRUCT;\n"
         for k in range(n - 1, -1, -1)) + "END_TYPE\n"
-    return _main("x := s" + ".f[1]" * n + ".v;", decls="  s : Lvl0;\n", before=types)
+    return _main("x := top" + ".f[1]" * n + ".v;", decls="  top : Lvl0;\n", before=types)
 
 
 def _fb_chain(n: int) -> str:

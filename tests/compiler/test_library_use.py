@@ -93,8 +93,8 @@ def library(tmp_path: Path) -> list[Path]:
 
 
 def fb_program(decls: str = "", body: str = "", before: str = "") -> str:
-    return (f"{before}FUNCTION_BLOCK Main\n  VAR\n    R : REAL;\n{decls}  END_VAR\n"
-            f"  R := 1.0;\n{body}END_FUNCTION_BLOCK\n")
+    return (f"{before}FUNCTION_BLOCK Main\n  VAR\n    Res : REAL;\n{decls}  END_VAR\n"
+            f"  Res := 1.0;\n{body}END_FUNCTION_BLOCK\n")
 
 
 def run(tmp_path: Path, text: str, library: list[Path]) -> tuple[list[str], list[str],
@@ -121,7 +121,7 @@ def test_a_block_takes_what_it_uses_transitively(tmp_path: Path,
                                                  library: list[Path]) -> None:
     # spelled in other cases: ST names are case-insensitive
     kept, replaced, diags = run(tmp_path, fb_program("    M : mixer;\n", "  M(C := Color#GREEN);"
-                                                     "\n  R := M.OUT;\n"), library)
+                                                     "\n  Res := M.OUT;\n"), library)
     assert (kept, replaced, diags) == (["Color", "Pair", "PairSum", "Mixer"], [], [])
 
 
@@ -156,13 +156,13 @@ def test_own_name_no_used_declaration_needs_is_no_conflict(
 
 
 def test_a_local_variable_is_not_a_use(tmp_path: Path, library: list[Path]) -> None:
-    assert run(tmp_path, fb_program("    Lonely : REAL;\n", "  Lonely := R;\n"),
+    assert run(tmp_path, fb_program("    Lonely : REAL;\n", "  Lonely := Res;\n"),
                library) == ([], [], [])
 
 
 def test_a_library_file_counts_only_when_used(tmp_path: Path, library: list[Path]) -> None:
     assert run(tmp_path, fb_program(), library)[2] == []
-    _, _, diags = run(tmp_path, fb_program(body="  R := Broken(R);\n"), library)
+    _, _, diags = run(tmp_path, fb_program(body="  Res := Broken(Res);\n"), library)
     assert diags and all("broken.st" in d and "E0100" in d for d in diags), diags
 
 
@@ -201,7 +201,7 @@ def _errors(user: list[A.SourceUnit], lib: Library, kept: list[Declaration]) -> 
 
 
 @pytest.mark.parametrize(("decls", "body"), [
-    ("", "R := ArcTan2(R, 1.0);"),
+    ("", "Res := ArcTan2(Res, 1.0);"),
     ("A : ArmAngles; P : Coordinates; G : ArmGeometry;", "A := InverseKinematik_V1(P, G);"),
     ("Pwm : PCA9685_Channels;", ""),
     ("Line : MotionLinear;", ""),

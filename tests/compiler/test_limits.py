@@ -217,7 +217,7 @@ def test_legal_containment_is_not_a_cycle(tmp_path: Path) -> None:
     """A diamond (two fields of one type), an in-out of the FB's own type and a type used by
     several FBs are not cycles."""
     decls = ("TYPE\n  Leaf : STRUCT\n    v : DINT;\n  END_STRUCT;\n"
-             "  Pair : STRUCT\n    l : Leaf;\n    r : Leaf;\n  END_STRUCT;\nEND_TYPE\n"
+             "  Pair : STRUCT\n    l : Leaf;\n    rt : Leaf;\n  END_STRUCT;\nEND_TYPE\n"
              "FUNCTION_BLOCK Holder\nVAR\n  p : Pair;\n  q : ARRAY[0..1] OF Pair;\nEND_VAR\n"
              "END_FUNCTION_BLOCK\n"
              "FUNCTION_BLOCK User\nVAR\n  h1 : Holder;\n  h2 : Holder;\nEND_VAR\n"
@@ -227,7 +227,7 @@ def test_legal_containment_is_not_a_cycle(tmp_path: Path) -> None:
     m = compile_files([path])
     inst = m.new_program("Main")
     inst()
-    assert inst.get("u")["h2"]["q"][1]["r"]["v"] == 0
+    assert inst.get("u")["h2"]["q"][1]["rt"]["v"] == 0
 
 
 def test_fb_instance_in_struct_is_rejected(tmp_path: Path) -> None:
@@ -238,9 +238,9 @@ def test_fb_instance_in_struct_is_rejected(tmp_path: Path) -> None:
 
 
 def test_types_nested_too_deep(tmp_path: Path) -> None:
-    """PROGRAM Main holds s : Lvl0, Lvl0 holds Lvl1, ...: n STRUCT levels plus Main's own."""
+    """PROGRAM Main holds top : Lvl0, Lvl0 holds Lvl1, ...: n STRUCT levels plus Main's own."""
     def types_only(n: int) -> Path:
-        text = re.sub(r"x := s(\.f)+\.v;", "x := 1;", program("struct_fields", n))
+        text = re.sub(r"x := top(\.f)+\.v;", "x := 1;", program("struct_fields", n))
         return write(tmp_path, f"types{n}", text)
 
     assert codes(types_only(NESTING_LIMIT - 1)) == []
@@ -381,7 +381,7 @@ def test_type_naming_a_later_type_is_e0212(tmp_path: Path, name: str) -> None:
 def _later_pou(name: str) -> str:
     pou, after = _LATER_POU[name]
     if name == "var_of_later_struct":
-        return _st("", "x : DINT;\n  s : Rec;", "x := s.v;").replace("\nCONFIGURATION",
+        return _st("", "x : DINT;\n  item : Rec;", "x := item.v;").replace("\nCONFIGURATION",
                                                                     after + "CONFIGURATION")
     body = "f();\n  x := f.v;" if name == "fb_of_later_fb" else "x := Inc(x);"
     decls = "x : DINT;\n  f : Cnt;" if name == "fb_of_later_fb" else "x : DINT;"

@@ -21,6 +21,7 @@ from armbench.compiler import driver, emit_c, programs, resolve, units
 from armbench.compiler.diagnostics import CompileFailed
 from armbench.compiler.driver import analyse_program, compile_files
 from armbench.compiler.symbols import CheckedProgram
+from armbench.compiler.targets import CODESYS_ONLY, OPENPLC_ONLY
 from armbench.compiler.types import ELEMENTARY
 from armbench.export.codesys import located
 
@@ -138,6 +139,20 @@ def test_another_compiler_version_is_compiled_again(files: tuple[Path, Path, Pat
     assert "check" in seen and "emit" in seen
 
 
+def test_a_compilation_for_another_target_is_checked_again(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    monkeypatch.setenv("ARMBENCH_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "bump.st"
+    # a CODESYS keyword: a warning when compiling for OpenPLC, an error for CODESYS
+    path.write_text("FUNCTION Bump : DINT\nVAR_INPUT\n  Cal : DINT;\nEND_VAR\n"
+                    "  Bump := Cal + 1;\nEND_FUNCTION\n")
+    assert compile_files([path]).call("Bump", 41) == 42
+    assert compile_files([path], target=OPENPLC_ONLY).call("Bump", 1) == 2  # from the cache
+    with pytest.raises(CompileFailed, match="E0214"):
+        compile_files([path], target=CODESYS_ONLY)
+
+
 @pytest.mark.parametrize("changed", ["runtime/iec_runtime.h", "data/stdlib-pou-names.txt",
                                      "emit_c.py"])
 def test_the_compiler_version_covers_its_runtime_and_data_files(
@@ -199,7 +214,7 @@ def test_a_damaged_declarations_module_is_written_again(
 
 def test_the_module_gets_the_whole_checked_program(files: tuple[Path, Path, Path]) -> None:
     prog, lib, _ = files
-    fresh = analyse_program([prog], [lib]).program
+    fresh = analyse_program([prog], [lib], OPENPLC_ONLY).program
     assert fresh is not None
 
     def shape(p: CheckedProgram) -> list[tuple[str, str, list[tuple[str, str, str]], int]]:

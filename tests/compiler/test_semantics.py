@@ -98,9 +98,11 @@ def test_matiec_values(matiec, path: Path) -> None:  # type: ignore[no-untyped-d
     if matiec.run_script is None:
         pytest.skip("MatIEC values need run-st.sh: set MATIEC_CHECK=/opt/realplc/check-st.sh")
     from armbench.compiler.driver import analyse
+    from armbench.compiler.targets import OPENPLC_ONLY
 
     scans, checks = parse_checks(path)
-    prog, diags = analyse([path])  # only for the variables' types, to address them in C
+    # only for the variables' types, to address them in C; MatIEC runs it: its target
+    prog, diags = analyse([path], target=OPENPLC_ONLY)
     exprs: list[str] = []
     ctypes: list[str | None] = []
     for i, c in enumerate(checks):

@@ -82,15 +82,16 @@ def plausible(rng: random.Random, code: int) -> tuple[int, int, list[Arg]]:
         int1 = r.choice((0, 1))
         args = []
     elif code == 11:
-        args = [*_joints(r), _log(r, 5.0, 400.0), _log(r, 20.0, 5000.0), _log(r, 100.0, 1e5)]
-        int1 = r.choice((0, 1, 2, 3, 3, -1, 4))
+        args = [*_joints(r), _log(r, 5.0, 400.0), _log(r, 20.0, 5000.0),
+                r.choice((_log(r, 100.0, 1e5), _log(r, 0.1, 1e9)))]
+        int1 = r.choice((0, 1, 2, 3, 3, -1, 4, 4, 4, 5))
     elif code == 12:
         args = [*_xyz(r), _log(r, 5.0, 300.0), _log(r, 20.0, 3000.0), _u(r, 0.2, 3.0)]
         int1 = r.choice((0, 1, 2, 2, 3))
         int2 = r.choice((0, 0, 1))
     elif code == 13:
         args = [_u(r, -1.2, 1.2), _u(r, -1.2, 1.2), _u(r, -1.2, 1.2), _log(r, 5.0, 300.0),
-                _log(r, 20.0, 3000.0)]
+                _log(r, 20.0, 3000.0), r.choice((0.0, 0.0, _log(r, 10.0, 1e7)))]
         int2 = r.choice((0, 0, 1))
     elif code == 14:
         args = [_u(r, -1.2, 1.2), _u(r, -1.2, 1.2), _u(r, -1.2, 1.2)]
@@ -125,6 +126,7 @@ def plausible(rng: random.Random, code: int) -> tuple[int, int, list[Arg]]:
         args = [_u(r, -1.0, 1.0) for _ in range(4)]
     elif code == 46:
         int1 = r.choice((0, 1, 3, 4))
+        int2 = r.choice((0, 0, r.randint(1, 1_000_000), -1))
         args = [r.choice((0.0, 2.0)), r.choice((0.0, 90.0)), 0.0, 0.0, 0.0, 0.0]
     else:
         args = [_u(r, -100.0, 100.0) for _ in range(r.randint(0, 6))]

@@ -117,6 +117,31 @@ def test_arm_follows_hand(fast_controller: FastPlc, rig: HandRig, flange_fixed: 
     assert_smooth(run.joints)
 
 
+def test_arm_follows_hand_jerk_limited(fast_controller: FastPlc, rig: HandRig) -> None:
+    """FollowImu with a jerk limit (Int2, 3000 deg/s^3): the same bounds as without, and the
+    joint setpoints the follow writes are smoother (their third differences, the joints'
+    jerk, at the 99th percentile) than in the same run without the limit. Not at their
+    peak: the limit holds for the turning speed along the arc to the hand, and a hand that
+    swerves turns that arc (ToolOrientationFollower's header)."""
+    runs = {}
+    for jerk in (0, 3000):
+        runs[jerk] = run_follow(fast_controller.address, rig, duration_s=8.0, heading_deg=10.0,
+                                seed=5, max_jerk_dps3=jerk)
+    run = runs[3000]
+    ok = run.t >= 2.0
+    assert np.percentile(run.error_deg[ok], 95) < ERROR_P95_DEG
+    assert run.error_deg[ok].max() < ERROR_MAX_DEG
+    assert run.drift_mm.max() < TIP_DRIFT_MM
+    assert_smooth(run.joints)
+    jerk = {k: np.abs(np.diff(r.setpoints, n=3, axis=0)).max(axis=1) / SCAN_S ** 3
+            for k, r in runs.items()}
+    p99 = {k: float(np.percentile(v, 99)) for k, v in jerk.items()}
+    peak = {k: float(v.max()) for k, v in jerk.items()}
+    print(f"joint setpoint jerk p99 / max, deg/s^3: without {p99[0]:.0f} / {peak[0]:.0f}, "
+          f"with 3000 {p99[3000]:.0f} / {peak[3000]:.0f}")
+    assert p99[3000] < 0.5 * p99[0]
+
+
 def _trajectory(pitch: tuple[tuple[float, float, float], ...], pitch_offset: float = 0.0,
                 yaw_offset: float = 10.0) -> HandTrajectory:
     return HandTrajectory(roll=((20.0, 0.15, 0.0),), pitch=pitch, yaw=(),
@@ -186,7 +211,8 @@ def test_bad_arguments_rejected(ctl: ArmControllerClient, rig: HandRig) -> None:
     rig.play(record, 1)
     rig.wait_samples(10)
     for kwargs in ({"dead_band_deg": math.nan}, {"max_rate_dps": -1.0},
-                   {"heading_deg": 400.0}, {"mount_rpy_deg": (0.0, math.inf, 0.0)}):
+                   {"heading_deg": 400.0}, {"mount_rpy_deg": (0.0, math.inf, 0.0)},
+                   {"max_jerk_dps3": -1}, {"max_jerk_dps3": 1_000_001}):
         assert ctl.follow_imu(**kwargs).error_id == ERR_BAD_PARAMETER  # type: ignore[arg-type]
     assert ctl.command(46, ints=(4, 0)).error_id == ERR_BAD_PARAMETER
     assert ctl.follow_state().state == 0

@@ -13,6 +13,13 @@ What RuSTy cannot take is set aside explicitly, never silently:
 - nothing else: no POU of the library or the controller may share a name with a POU of RuSTy's
   standard library (names are case-insensitive; the library's arc tangent is ArcTan2, not
   Atan2, for this reason). test_rusty_stdlib_clashes_are_the_known_ones keeps it so.
+
+RuSTy is also the evidence for `armbench check --target codesys` (docs/diagnostics.md,
+Targets): every POU of its standard library is a name armbench.compiler.reserved reserves, it
+warns E067 exactly where the checker's E0309 says TRUNC narrows (the corpus cases), refuses the
+E0214 corpus case's GET and SET, and builds what E0411 refuses only for OpenPLC. The library
+has no TRUNC narrowing left (RuSTy's other E067 warnings are on literals, where nothing
+narrows: docs/exports.md).
 """
 
 from __future__ import annotations
@@ -29,14 +36,18 @@ from pathlib import Path
 import pytest
 
 from armbench.compiler import ast as A
+from armbench.compiler import check_files
 from armbench.compiler.diagnostics import Diagnostics
 from armbench.compiler.frontend import check_syntax
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
+from armbench.compiler.reserved import reserved_anywhere
+from armbench.compiler.targets import CODESYS_ONLY
 from armbench.locate import Project
 
 REPO = Path(__file__).resolve().parents[2]
 PROJECT = Project(REPO)
+CORPUS = REPO / "tests" / "corpus" / "diagnostics"
 RUSTY_TIMEOUT_S = 600
 
 # Upper-cased POU name -> why RuSTy cannot generate it next to its standard library: none.
@@ -193,6 +204,64 @@ def test_rusty_checks_the_sources(rusty: Rusty, sources_for_rusty: dict[str, lis
 def test_rusty_stdlib_clashes_are_the_known_ones(rusty: Rusty) -> None:
     ours = {p.name.upper() for p in pous_of(controller_files())}
     assert ours & rusty.stdlib_pou_names() == set(KNOWN_CLASHES)
+
+
+def test_rusty_stdlib_pous_are_reserved(rusty: Rusty) -> None:
+    """The one list of reserved names (armbench.compiler.reserved) holds every POU of RuSTy's
+    standard library but the type-mangled ones (TRUNC__REAL: no identifier has '__')."""
+    names = {n for n in rusty.stdlib_pou_names() if "__" not in n}
+    assert len(names) > 400
+    assert sorted(n for n in names if not reserved_anywhere(n)) == []
+
+
+# ---------------------------------------------------------------- the checker's CODESYS rules
+def _rusty_view(path: Path, out: Path) -> Path:
+    """A corpus file as RuSTy takes it: its CONFIGURATION blanked (line numbers stay)."""
+    text = path.read_text(encoding="utf-8")
+    dest = out / path.name
+    dest.write_text(blank_lines(text, *configuration_lines(text)), encoding="utf-8")
+    return dest
+
+
+def _checker_lines(path: Path, code: str) -> set[int]:
+    return {d.pos.line for d in check_files([path], target=CODESYS_ONLY) if d.code == code}
+
+
+@pytest.mark.parametrize("path", sorted(CORPUS.glob("E0309_*.st")), ids=lambda p: p.stem)
+def test_rusty_warns_where_trunc_narrows(rusty: Rusty, path: Path, tmp_path: Path) -> None:
+    res = rusty.run([_rusty_view(path, tmp_path)], "--check")
+    assert not errors(res), res.stdout + res.stderr
+    narrowed = {int(m["line"]) for m in DIAGNOSTIC.finditer(res.stdout + res.stderr)
+                if m["code"] == "E067" and "from 'LINT'" in m["msg"]}
+    assert narrowed == _checker_lines(path, "E0309"), res.stdout + res.stderr
+
+
+def test_rusty_refuses_get_and_set(rusty: Rusty, tmp_path: Path) -> None:
+    path = CORPUS / "E0214_get_set_codesys.st"
+    res = rusty.run([_rusty_view(path, tmp_path)], "--check")
+    refused = {int(m["line"]) for m in errors(res)}
+    ours = _checker_lines(path, "E0214")
+    # RuSTy stops at the first: one parse error spans both declarations (lines 6-7)
+    assert len(ours) == 2 and min(ours) in refused, res.stdout + res.stderr
+
+
+@pytest.mark.parametrize("path", sorted(CORPUS.glob("E0411_*.st")), ids=lambda p: p.stem)
+def test_rusty_builds_array_elements_as_in_outs(rusty: Rusty, path: Path,
+                                                tmp_path: Path) -> None:
+    res = rusty.run([_rusty_view(path, tmp_path)], "--check")
+    assert res.returncode == 0 and not errors(res), res.stdout + res.stderr
+
+
+def test_rusty_finds_no_trunc_narrowing_in_the_library(rusty: Rusty) -> None:
+    res = rusty.run(library_files(), "--check")
+    lines = {f: f.read_text(encoding="utf-8").split("\n") for f in library_files()}
+    narrowed = []
+    for m in DIAGNOSTIC.finditer(res.stdout + res.stderr):
+        if m["code"] == "E067":
+            src = lines.get(Path(m["file"]), [""] * int(m["line"]))[int(m["line"]) - 1]
+            if "TRUNC(" in src.upper():
+                narrowed.append(m.group(0))
+    assert narrowed == []
 
 
 # ---------------------------------------------------------------- code generation

@@ -8,14 +8,10 @@ and REAL joints within float32 rounding. Skips where the real toolchain is absen
 
 from __future__ import annotations
 
-import os
-import re
-import shutil
-import subprocess
 from pathlib import Path
-from typing import Any
 
 import pytest
+from matiec_run import SKIP_REASON, first_scan_both, run_tool
 
 from armbench.plant import redundant_chain as rc
 
@@ -23,14 +19,6 @@ REPO = Path(__file__).resolve().parents[2]
 ST = REPO / "st"
 FILES = ["ArmAngles.st", "Kinematics.st", "KinematicsFixedTables.st", "KinematicsFixed.st",
          "KinematicsChainFixed.st", "Kinematics5Axis.st"]
-
-
-def _run_st() -> Path | None:
-    check = os.environ.get("MATIEC_CHECK")
-    if not check:
-        return None
-    run = Path(os.environ.get("MATIEC_RUN", Path(check).with_name("run-st.sh")))
-    return run if run.is_file() else None
 
 
 def _program() -> str:
@@ -96,27 +84,9 @@ END_CONFIGURATION
 """
 
 
-@pytest.mark.skipif(_run_st() is None, reason="MATIEC_RUN (or a run-st.sh beside MATIEC_CHECK) "
-                    "not set or no file: see the README's 'Checking against the real MatIEC'")
+@pytest.mark.skipif(run_tool() is None, reason=SKIP_REASON)
 def test_real_matiec_runs_the_003_line_bit_for_bit(tmp_path: Path) -> None:
-    from armbench.compiler import compile_files
-
-    run_st = _run_st()
-    assert run_st is not None
-    program = tmp_path / "chain_line_main.st"
-    # one file, as OpenPLC uploads it: the library files, then the program
-    program.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in FILES)
-                       + "\n" + _program(), encoding="utf-8")
-    bash = shutil.which("bash") or "/bin/bash"
-    run = subprocess.run([bash, str(run_st), "-n", "1", str(program)], capture_output=True,
-                         text=True, timeout=600, check=False)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    real = dict(re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M))
-
-    mod = compile_files([program])
-    prog: Any = mod.instance("instance0")
-    mod.config_init()
-    mod.run_task_index(0, 0)
+    real, prog = first_scan_both(tmp_path, "chain_line_main.st", FILES, _program())
     ints = ["Q1", "Q2", "Q3", "Q4", "SUM", "FAILS", "ERR5"]
     ours = {n: int(prog.get(n)) for n in ints}
     print(f"\nreal MatIEC: {[real.get(n) for n in ints]}\nbench:       "

@@ -15,6 +15,7 @@ faster than Ruckig's time-optimal duration.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -394,10 +395,19 @@ def test_step1_shapes_accept_only_right_profiles(st_module: Any, case: AxisCase,
                                                  shape: int) -> None:
     ref = ruckig_plan((case,))
     assume(ref.ok)
+    bound = ref.duration
+    if abs(case.a0) < 1e-9 * case.amax:
+        # Ruckig is no lower bound at a vanishing start acceleration: from v0 = vmax = 1 to
+        # 2 (amax = jmax = 1) it gives 3.0 s for a0 = 0 and 1e-6 but 4.0 s for a0 = 7.8e-168,
+        # where 1 s at vmax and the 2 s brake reach the target in 3.0 s as well
+        bound = min(bound, ruckig_plan((dataclasses.replace(case, a0=0.0),)).duration)
+    # a move shorter than assert_reaches' position tolerance is reached by staying put (a
+    # profile of 0 s for pf = 2e-9): only the duration of real moves is bounded
+    moves = abs(case.pf - case.p0) > 1e-7 * max(abs(case.p0), abs(case.pf), 1.0)
     prof = boundary(st_module, case)
     data = step1_data(prof, case.jmax)
     for lims in directions(case):
-        args: dict[str, Any] = dict(S=data, **lims)
+        args: dict[str, Any] = dict(Terms=data, **lims)
         if name in ("MotionJerkS1Acc0Acc1", "MotionJerkS1NoneAcc0Acc1"):
             args["ReturnAfterFound"] = False
         if name == "MotionJerkS1TwoStep":
@@ -406,7 +416,7 @@ def test_step1_shapes_accept_only_right_profiles(st_module: Any, case: AxisCase,
         cands = outs["C"]
         for item in cands["Item"][:cands["Count"]]:
             assert_reaches(item, case)
-            assert item["TSum"][6] >= ref.duration * (1 - 1e-9) - 1e-12
+            assert not moves or item["TSum"][6] >= bound * (1 - 1e-9) - 1e-12
 
 
 @given(st.lists(st.tuples(st.floats(0.0, 10.0), st.booleans()), min_size=0, max_size=6))
@@ -488,7 +498,7 @@ def test_step2_shapes_accept_only_right_profiles(st_module: Any, case: AxisCase,
     prof = boundary(st_module, case)
     data = step2_data(prof, tf, case.jmax)
     for lims in directions(case):
-        ok, outs = st_module.call_full(name, S=data, **lims, Prof=prof)
+        ok, outs = st_module.call_full(name, Terms=data, **lims, Prof=prof)
         if ok:
             assert_reaches(outs["Prof"], case, duration=tf)
 
@@ -503,7 +513,7 @@ def test_step2_velocity_root_accepts_only_right_profiles(st_module: Any, case: A
     prof = boundary(st_module, case)
     data = step2_data(prof, tf, case.jmax)
     for lims in directions(case):
-        ok, outs = st_module.call_full("MotionJerkS2VelRoot", S=data, T0=frac * tf / 2,
+        ok, outs = st_module.call_full("MotionJerkS2VelRoot", Terms=data, T0=frac * tf / 2,
                                        Udud=udud, **lims, Prof=prof)
         if ok:
             assert_reaches(outs["Prof"], case, duration=tf)

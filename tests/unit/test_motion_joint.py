@@ -166,7 +166,7 @@ BAD_MOVES: list[tuple[str, dict[str, Any], int]] = [
     ("jerk -Inf", {"Profile": 3, "Jerk": -INF}, BAD_PARAMETER),
     ("cycle time 0", {"CycleTime": 0.0}, BAD_PARAMETER),
     ("cycle time NaN", {"CycleTime": NAN}, BAD_PARAMETER),
-    ("profile 4", {"Profile": 4}, BAD_PROFILE),
+    ("profile 5", {"Profile": 5}, BAD_PROFILE),
     ("profile -1", {"Profile": -1}, BAD_PROFILE),
     ("target NaN", {"Target": padded([NAN, 0.0, 90.0])}, NOT_FINITE),
     ("target beyond upper limit", {"Target": padded([0.0, 171.0, 90.0])}, JOINT_LIMIT),

@@ -124,22 +124,22 @@ def test_saturated_registers_are_flagged(st_module: Any) -> None:
     record = simulate(HandTrajectory(), ImuModel(), duration_s=0.1, rate_hz=100.0, seed=1)
     cal = record.model.calibration()
     good = raw_dict(record, 0)
-    assert st_module.call("ImuRawToSample", Raw=good, Cal=cal)["Code"] == 0
+    assert st_module.call("ImuRawToSample", Raw=good, Calibration=cal)["Code"] == 0
     for key, value in (("GyroX", 32767), ("GyroZ", -32768), ("AccelY", 32767),
                        ("AccelZ", -32768), ("MagX", -4096), ("MagZ", -4096)):
-        got = st_module.call("ImuRawToSample", Raw={**good, key: value}, Cal=cal)
+        got = st_module.call("ImuRawToSample", Raw={**good, key: value}, Calibration=cal)
         assert got["Code"] == SATURATED, key
     for bad_cal in ({"GyroLsbPerDps": 0.0}, {"AccelLsbPerG": math.nan},
                     {"MagLsbPerGauss": -1090.0}, {"AccelScaleX": 3.0},
                     {"GyroBiasDps": vec_dict([math.inf, 0.0, 0.0])}):
-        got = st_module.call("ImuRawToSample", Raw=good, Cal={**cal, **bad_cal})
+        got = st_module.call("ImuRawToSample", Raw=good, Calibration={**cal, **bad_cal})
         assert got["Code"] == BAD_PARAMETER, bad_cal
         assert all(math.isfinite(got[v][k]) for v in ("Gyro", "Accel", "Mag") for k in "XYZ")
     # the simulated chips saturate too: a spin at 400 deg/s on a 250 deg/s range
     fast = simulate(HandTrajectory(yaw=((120.0, 0.6, 0.0),)), ImuModel(), duration_s=2.0,
                     rate_hz=100.0, seed=2)
     assert np.any(np.abs(fast.gyro_raw) >= 32767)
-    codes = [st_module.call("ImuRawToSample", Raw=raw_dict(fast, k), Cal=cal)["Code"]
+    codes = [st_module.call("ImuRawToSample", Raw=raw_dict(fast, k), Calibration=cal)["Code"]
              for k in range(len(fast))]
     assert SATURATED in codes
 

@@ -79,7 +79,7 @@ def test_raw_to_sample_uses_the_datasheet_scales(st_module: Any, record: Any,
     cal = {**record.model.calibration(), "GyroBiasDps": vec_dict([1.0, -2.0, 0.5]),
            "AccelOffsetG": vec_dict([0.01, 0.0, -0.02]), "AccelScaleX": 1.1,
            "AccelScaleY": 0.9, "AccelScaleZ": 1.0, "MagOffsetGauss": vec_dict([0.1, 0.2, -0.1])}
-    got = st_module.call("ImuRawToSample", Raw=raw_dict(record, 5), Cal=cal)
+    got = st_module.call("ImuRawToSample", Raw=raw_dict(record, 5), Calibration=cal)
     g, a, m = record.gyro_raw[5], record.accel_raw[5], record.mag_raw[5]
     assert [got["Gyro"][k] for k in "XYZ"] == pytest.approx(g / 131.0 - [1.0, -2.0, 0.5],
                                                              abs=1e-5)

@@ -634,13 +634,15 @@ def test_madgwick_sample_by_sample(st_module: Any, kind: str, q0: np.ndarray,
 # --- Follower settings ------------------------------------------------------------------------
 
 @examples(400)
-@given(dead=real(0.0, 90.0), rate=real(0.0, 3600.0), acc=real(0.0, 1e6), cycle=real(0.0, 1.0))
+@given(dead=real(0.0, 90.0), rate=real(0.0, 3600.0), acc=real(0.0, 1e6), cycle=real(0.0, 1.0),
+       jerk=st.one_of(st.just(0.0), real(0.0, 1e7)))
 def test_tool_follower_settings_ok(st_module: Any, dead: float, rate: float, acc: float,
-                                   cycle: float) -> None:
-    dead, rate, acc, cycle = f32(dead), f32(rate), f32(acc), f32(cycle)
+                                   cycle: float, jerk: float) -> None:
+    dead, rate, acc, cycle, jerk = f32(dead), f32(rate), f32(acc), f32(cycle), f32(jerk)
+    # a jerk limit (0 = none, up to 1e7) only with an acceleration limit
     want = (0.0 <= dead <= 90.0 and 0.0 < rate <= 3600.0 and 0.0 <= acc <= 1e6
-            and 0.0 < cycle <= 1.0)
-    assert st_module.call("ToolFollowerSettingsOk", dead, rate, acc, cycle) is want
+            and 0.0 < cycle <= 1.0 and 0.0 <= jerk <= 1e7 and (jerk <= 0.0 or acc > 0.0))
+    assert st_module.call("ToolFollowerSettingsOk", dead, rate, acc, cycle, jerk) is want
 
 
 @pytest.mark.parametrize("gyro", [(0.0, 130591.0, 999982.0), (1.0e6, 1.0e6, 1.0e6),

@@ -134,7 +134,7 @@ def test_angle_to_pulse_cannot_jump(
     (or a non-finite angle): Error, the code, PulseUs 0.0 (channel off)."""
     figures.case("MG996R_AngleToPulse")
     code = st_module.call("ServoCalibrationCheck", c)
-    got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=joint, Cal=c)
+    got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=joint, Calibration=c)
     if code == NO_ERROR and not finite(joint):
         code = NOT_FINITE
     if code != NO_ERROR:
@@ -149,7 +149,7 @@ def test_angle_to_pulse_cannot_jump(
     assert abs(got["ServoAngleDeg"] - servo) <= 1e-4 * max(1.0, abs(joint))
     if abs(abs(servo) - 90.0) > 1e-3:  # flag exact except at a float32 tie with a limit
         assert got["Clamped"] == clamped or abs(got["ServoAngleDeg"] - servo) < 1e-4
-    nxt = st_module.call("MG996R_AngleToPulse", JointAngleDeg=f32(joint + step), Cal=c)
+    nxt = st_module.call("MG996R_AngleToPulse", JointAngleDeg=f32(joint + step), Calibration=c)
     assert abs(nxt["PulseUs"] - got["PulseUs"]) <= SCALE_MAX * abs(f32(joint + step) - joint) + 4e-3
 
 
@@ -160,7 +160,7 @@ def test_pulse_to_angle_vs_reference(
 ) -> None:
     figures.case("MG996R_PulseToAngle")
     code = st_module.call("ServoCalibrationCheck", c)
-    got = st_module.call("MG996R_PulseToAngle", PulseUs=pulse, Cal=c)
+    got = st_module.call("MG996R_PulseToAngle", PulseUs=pulse, Calibration=c)
     if code == NO_ERROR and not finite(pulse):
         code = NOT_FINITE
     if code != NO_ERROR:
@@ -188,12 +188,12 @@ def test_defect_calibration_bounds_prevent_the_jump_of_issue_8(st_module: Any) -
     for bad in (wide, huge_scale, {**DEFAULT_CAL, "Direction": 0},
                 {**DEFAULT_CAL, "Direction": 2}, {**DEFAULT_CAL, "Direction": -3}):
         assert st_module.call("ServoCalibrationCheck", bad) == BAD_CALIBRATION, bad
-        got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=10.0, Cal=bad)
+        got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=10.0, Calibration=bad)
         assert got["Error"] and got["PulseUs"] == 0.0
     for zero, joint in ((0.0, 10.0), (70.0, 70.0), (65.0, 65.0)):
         c = {**DEFAULT_CAL, "ZeroOffsetDeg": zero}
         assert st_module.call("ServoCalibrationCheck", c) == NO_ERROR
-        got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=joint, Cal=c)
+        got = st_module.call("MG996R_AngleToPulse", JointAngleDeg=joint, Calibration=c)
         assert 1000.0 <= got["PulseUs"] <= 2000.0
     # the two real-servo scales named in the header pass: 8.33 and 11.1 us/deg
     full = {**DEFAULT_CAL, "MinPulseUs": 500.0, "MaxPulseUs": 2500.0,

@@ -59,7 +59,7 @@ class Channel:
 
     def step(self, powered: bool, cmd: float, cal: dict[str, Any] = DEFAULT_CAL,
              vel: float = 150.0, acc: float = 1000.0, replanned: bool = False) -> Any:
-        out = self.fb(Powered=powered, CommandDeg=cmd, Cal=cal, MaxVelDeg=vel,
+        out = self.fb(Powered=powered, CommandDeg=cmd, Calibration=cal, MaxVelDeg=vel,
                       MaxAccDeg=acc, CycleTime=DT, Replanned=replanned)
         p = float(out.PulseUs)
         self.pulses.append(p)

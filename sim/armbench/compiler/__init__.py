@@ -4,5 +4,6 @@ from __future__ import annotations
 
 from .diagnostics import CompileFailed, Diagnostic
 from .driver import check_files, compile_files
+from .targets import Target
 
-__all__ = ["CompileFailed", "Diagnostic", "check_files", "compile_files"]
+__all__ = ["CompileFailed", "Diagnostic", "Target", "check_files", "compile_files"]

@@ -12,13 +12,63 @@ HEADER = """# Diagnostics of `armbench check`
 Generated from `sim/armbench/compiler/diagnostics.py` by
 `python -m armbench.compiler.diagdoc > docs/diagnostics.md`; do not edit by hand.
 
-Every diagnostic is one line, `file:line:col: error[CODE]: message` (notes, `note[N...]`,
-do not fail the check). `armbench check` ends with a one-line summary. The portability rules
-mirror what MatIEC (the compiler inside OpenPLC) or OpenPLC's C build rejects, as measured on
-the real tools (see docs/matiec-facts.md): code that passes `armbench check` compiles there too.
+Every diagnostic is one line, `file:line:col: error[CODE]: message` (warnings,
+`warning[CODE]`, and notes, `note[N...]`, do not fail the check). `armbench check` ends with a
+one-line summary. The portability rules mirror what MatIEC (the compiler inside OpenPLC) or
+OpenPLC's C build rejects, as measured on the real tools (see docs/matiec-facts.md): code that
+passes `armbench check` compiles there too. `--target` adds what IEC 61131-3's 3rd edition and
+the CODESYS family refuse (Targets, below).
 
 | code | what it means | what to write instead |
 |---|---|---|
+"""
+
+
+TARGETS = """
+## Targets (E0214, E0215, E0309, E0411)
+
+`armbench check --target openplc|codesys|all` (default `all`; in Python
+`check_files(paths, target=Target.named("codesys"))`) says which compilers the code is for:
+`openplc` is MatIEC, `codesys` IEC 61131-3's 3rd edition and the CODESYS family (CODESYS V3,
+TwinCAT 3, RuSTy, which follows CODESYS). All the other codes are the subset the bench compiles
+and are errors for every target. These four are enforced by some dialects only, so their
+severity follows the target: an **error** when a dialect you check for refuses the construct,
+a **warning** when only one you do not check for refuses it (it builds where you deploy, not
+everywhere) or when one you check for only warns. `all` is the default because the library
+must build everywhere. `build`, `run`, `serve` and `export` compile what OpenPLC runs: they use
+`openplc` and fail only on its errors.
+
+| code | `--target openplc` | `--target codesys` | `--target all` |
+|---|---|---|---|
+| E0214 reserved name | warning | error | error |
+| E0215 `__`, trailing `_` | error | error (`__`), warning (trailing) | error |
+| E0309 TRUNC narrowed | nothing | warning | warning |
+| E0411 array element as in-out | error | warning | error |
+
+- **E0214.** One list, `sim/armbench/compiler/reserved.py`, with its sources: IEC 61131-3
+  (3rd edition) keywords, data types, standard functions and FBs; the keywords of CODESYS's
+  online help and TwinCAT 3's keyword list, which include IL's instructions (`CAL`, `LD`,
+  `R`, `S`, `ST`, `JMP`, ...) and CODESYS's `BIT`; RuSTy's lexer keywords and standard
+  library. Keywords, data types and operators are refused as any name (variable, field,
+  enumeration value, POU, type); a standard function or FB only as a POU or type name: a
+  variable `Round` shadows RuSTy's `ROUND`, but a `FUNCTION Atan2` is a second declaration of
+  RuSTy's `ATAN2` (its code generation stopped there). MatIEC's own reserved names are E0202.
+  Write instead: a longer name (`Calibration`, not `Cal`; `ChannelBit`, not `Bit`; `ArcTan2`,
+  not `Atan2`).
+- **E0215.** `Lim__Sw` and `Lim_Sw_` fail in iec2c ("invalid located variable declaration");
+  a leading underscore (`_Lim`) builds. Write `Lim_Sw`.
+- **E0309.** TRUNC's result type differs: MatIEC takes it from the context, CODESYS returns
+  DINT, RuSTy LINT. RuSTy warns wherever the LINT goes into a narrower integer: an
+  assignment, an argument, a FUNCTION's result, through arithmetic and ABS, LIMIT, MIN, MAX,
+  SEL, MUX; not in a comparison, an index, a CASE selector or a FOR bound, and the check
+  follows it there. Write `Turns : LINT; Turns := TRUNC(x);` (CODESYS widens its DINT) or
+  `D := LINT_TO_DINT(TRUNC(x));`; both build in MatIEC and give the same values.
+- **E0411.** In a FUNCTION_BLOCK or PROGRAM, iec2c wraps a call of a FUNCTION with
+  VAR_IN_OUT or VAR_OUTPUT in a C helper that writes an array element (`a[i]`, `s.v[i]`,
+  `a[i].x`) as `.table1`, which g++ refuses. The same call inside a FUNCTION, an FB instance's
+  VAR_IN_OUT given an element, and a STRUCT field without an index build. Write
+  `Tmp := Arr[I]; Ok := Bump(Val := Tmp); Arr[I] := Tmp;`, or pass the whole array as
+  VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK.
 """
 
 
@@ -122,7 +172,7 @@ named so because RuSTy's standard library declares ATAN2. `--no-library` adds no
 
 def render() -> str:
     rows = "".join(f"| {code} | {title} | {fix} |\n" for code, (title, fix) in CODES.items())
-    return HEADER + rows + LIMITS + LIBRARY
+    return HEADER + rows + TARGETS + LIMITS + LIBRARY
 
 
 if __name__ == "__main__":

@@ -1,4 +1,9 @@
-"""Diagnostics: the one table of error codes, the message record and how it renders."""
+"""Diagnostics: the one table of error codes, the message record and how it renders.
+
+A diagnostic is an error (the check fails), a warning (a target other than the ones checked
+for refuses it, or a checked target only warns; the check passes) or a note. Which codes
+depend on the target, and how, is in targets.py.
+"""
 
 from __future__ import annotations
 
@@ -48,6 +53,14 @@ CODES: dict[str, tuple[str, str]] = {
     "E0213": ("your declaration replaces one the armbench library needs",
               "rename your TYPE or POU, or check with --no-library and pass the library files "
               "you need (docs/diagnostics.md, The armbench library)"),
+    "E0214": ("name reserved in IEC 61131-3 (3rd edition), CODESYS, TwinCAT or RuSTy",
+              "rename it (e.g. Bit -> ChannelBit, S -> Terms, Cal -> Calibration): keywords, "
+              "data types and operators are refused as any name there, standard functions "
+              "and FBs as POU or type names; an error for --target codesys and all, a "
+              "warning for openplc (see Targets below)"),
+    "E0215": ("identifier with consecutive or trailing underscores",
+              "write one underscore between parts and none at the end (Lim_Sw, not Lim__Sw "
+              "or Lim_Sw_): MatIEC refuses both, CODESYS refuses '__'"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "
@@ -58,6 +71,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0306": ("not an array", "index only ARRAY variables"),
     "E0307": ("wrong number of indices", "give one index per array dimension"),
     "E0308": ("constant index out of bounds", "use an index inside the declared range"),
+    "E0309": ("TRUNC narrowed implicitly", "receive TRUNC's result in a LINT (Turns : LINT; "
+              "Turns := TRUNC(x)) or convert it with LINT_TO_DINT(TRUNC(x)): TRUNC returns "
+              "LINT in RuSTy and DINT in CODESYS, so anything narrower warns there (a warning "
+              "for --target codesys and all; MatIEC types TRUNC from its context)"),
     "E0400": ("bad call", "check the POU name and its parameters"),
     "E0401": ("call without arguments", "pass at least one argument: MatIEC rejects F()"),
     "E0402": ("mixed named and positional arguments", "pass all arguments named or all "
@@ -75,6 +92,13 @@ CODES: dict[str, tuple[str, str]] = {
               "in a FUNCTION_BLOCK or PROGRAM, call only STRUCT-returning FUNCTIONs without "
               "VAR_OUTPUT/VAR_IN_OUT: return BOOL and pass the STRUCT as VAR_IN_OUT, or call it "
               "from a FUNCTION"),
+    "E0411": ("array element bound to a FUNCTION's VAR_IN_OUT or VAR_OUTPUT in a "
+              "FUNCTION_BLOCK or PROGRAM",
+              "copy the element into a variable, call with the variable, copy it back (or "
+              "pass the whole array as VAR_IN_OUT and the index as an input, or make the "
+              "callee a FUNCTION_BLOCK): OpenPLC's C build fails on the element; inside a "
+              "FUNCTION it builds (an error for --target openplc and all, a warning for "
+              "codesys)"),
     "E0500": ("array bound is not a literal", "write literal bounds: ARRAY[0..3]"),
     "E0501": ("ARRAY OF ARRAY", "use a multi-dimensional array ARRAY[a..b, c..d]"),
     "E0502": ("ARRAY of FB instances", "declare the instances one by one"),
@@ -96,7 +120,7 @@ class Diagnostic:
     pos: SourcePos
     code: str
     message: str
-    severity: str = "error"
+    severity: str = "error"  # "error" | "warning" | "note"
 
     def render(self) -> str:
         return f"{self.pos}: {self.severity}[{self.code}]: {self.message}"
@@ -114,6 +138,16 @@ class Diagnostics:
 
     def error(self, pos: SourcePos, code: str, message: str) -> None:
         self._add(Diagnostic(pos, code, message))
+
+    def warning(self, pos: SourcePos, code: str, message: str) -> None:
+        """A portability problem that does not fail the check (see targets.py)."""
+        self._add(Diagnostic(pos, code, message, "warning"))
+
+    def report(self, severity: str, pos: SourcePos, code: str, message: str) -> None:
+        """An error or a warning, as ``severity`` says (a target decides which)."""
+        if severity not in ("error", "warning"):
+            raise ValueError(f"severity must be 'error' or 'warning', not {severity!r}")
+        self._add(Diagnostic(pos, code, message, severity))
 
     def note(self, pos: SourcePos, code: str, message: str) -> None:
         """Information that does not fail the check (e.g. the encoding a file was read in)."""

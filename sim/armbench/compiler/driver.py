@@ -1,8 +1,10 @@
 """The pipeline in one place: files -> diagnostics, or files -> loaded Module.
 
 The files given are the program; ``library`` files are looked up by use (uses.py): only the
-library declarations the program needs are compiled with it. Each file's front end is cached
-(units.py), and so is each whole compilation to a Module (programs.py).
+library declarations the program needs are compiled with it. ``target`` (targets.py) says
+which dialects the check is for: a check defaults to all of them, as `armbench check` does;
+compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``openplc``. Each file's
+front end is cached (units.py), and so is each whole compilation to a Module (programs.py).
 """
 
 from __future__ import annotations
@@ -15,10 +17,12 @@ from typing import TYPE_CHECKING
 from . import ast as A
 from .build import BuiltLibrary, build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
+from .dialects import check_dialects
 from .emit_c import CUnit, emit
 from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
+from .targets import ALL, OPENPLC_ONLY, Target
 from .units import UnitCache, paused_gc
 from .uses import Library, LibraryUse
 
@@ -47,17 +51,17 @@ class Analysis:
     library: LibraryUse = field(default_factory=LibraryUse)
 
 
-def analyse_program(paths: Sequence[str | Path],
-                    library: Sequence[str | Path] = (),
-                    unit_cache: UnitCache | None = None) -> Analysis:
-    """Check the program ``paths`` together with the declarations of ``library`` it uses
-    (``unit_cache``: the front-end cache to use, e.g. one with the files already read)."""
+def analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                    target: Target = ALL, unit_cache: UnitCache | None = None) -> Analysis:
+    """Check the program ``paths`` together with the declarations of ``library`` it uses, for
+    the dialects of ``target`` (``unit_cache``: the front-end cache to use, e.g. one with the
+    files already read)."""
     with paused_gc():
-        return _analyse_program(paths, library, unit_cache)
+        return _analyse_program(paths, library, target, unit_cache)
 
 
 def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
-                     unit_cache: UnitCache | None) -> Analysis:
+                     target: Target, unit_cache: UnitCache | None) -> Analysis:
     diags = Diagnostics()
     cache = UnitCache() if unit_cache is None else unit_cache
     files = expand(paths)
@@ -86,6 +90,7 @@ def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
             units.append(use.prune(unit))
     prog = check(units, diags)
     check_names(prog, diags)
+    check_dialects(prog, diags, target)
     if use.replaced:
         _explain_replacements(diags, use)
     return Analysis(None if diags.has_errors else prog, diags, use)
@@ -108,42 +113,45 @@ def _explain_replacements(diags: Diagnostics, use: LibraryUse) -> None:
     diags.error(use.replaced[0].mine.pos, "E0213", use.conflict())
 
 
-def analyse(paths: Sequence[str | Path], library: Sequence[str | Path] = ()
-            ) -> tuple[CheckedProgram | None, Diagnostics]:
-    a = analyse_program(paths, library)
+def analyse(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+            target: Target = ALL) -> tuple[CheckedProgram | None, Diagnostics]:
+    a = analyse_program(paths, library, target)
     return a.program, a.diagnostics
 
 
-def check_files(paths: Sequence[str | Path],
-                library: Sequence[str | Path] = ()) -> list[Diagnostic]:
-    return analyse(paths, library)[1].sorted()
+def check_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                target: Target = ALL) -> list[Diagnostic]:
+    return analyse(paths, library, target)[1].sorted()
 
 
 def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
-               unit_cache: UnitCache | None = None) -> tuple[CheckedProgram, CUnit]:
+               target: Target = OPENPLC_ONLY, unit_cache: UnitCache | None = None
+               ) -> tuple[CheckedProgram, CUnit]:
     with paused_gc():
-        a = analyse_program(paths, library, unit_cache)
+        a = analyse_program(paths, library, target, unit_cache)
         if a.program is None:
             raise CompileFailed(a.diagnostics.sorted())
         return a.program, emit(a.program)
 
 
-def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = ()) -> Module:
+def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
+                  target: Target = OPENPLC_ONLY) -> Module:
     """The program compiled and loaded: from the cache of compilations (programs.py) when
-    these files were compiled before."""
+    these files were compiled before for ``target``."""
     with paused_gc():
-        return _compile_files(paths, library)
+        return _compile_files(paths, library, target)
 
 
-def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path]) -> Module:
+def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path],
+                   target: Target) -> Module:
     from .ffi import Module
     from .programs import ProgramCache
 
     files = expand(paths)
     programs = ProgramCache()
-    sources = programs.read(files, library_files(files, library))
+    sources = programs.read(files, library_files(files, library), target)
     if sources is None:  # a file cannot be read: the compilation reports it
-        prog, unit = emit_files(files, library)
+        prog, unit = emit_files(files, library, target)
         return Module(prog, build(unit), unit.decls)
     hit = programs.get(sources)
     if hit is not None:
@@ -152,7 +160,7 @@ def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path]) -
     # compiles
     unit_cache = UnitCache(contents=sources.contents, deferred=True)
     try:
-        prog, unit = emit_files(files, library, unit_cache)
+        prog, unit = emit_files(files, library, target, unit_cache)
 
         def meanwhile(lib: BuiltLibrary) -> None:
             unit_cache.flush()

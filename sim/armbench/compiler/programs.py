@@ -2,8 +2,9 @@
 emitting or compiling anything when the same files were compiled before.
 
 An entry is keyed by a hash of every file of the compilation (the program's and the library's,
-each with its path, in order) and of the compiler (units.compiler_version: its sources, data
-and runtime files, the grammar, Python) and cffi. The files are read once, for the key, and the
+each with its path, in order), of the target it was checked for (targets.py: which dialects'
+rules are errors) and of the compiler (units.compiler_version: its sources, data and runtime
+files, the grammar, Python) and cffi. The files are read once, for the key, and the
 compilation reads them from there (units.UnitCache's contents), so an entry always describes
 the bytes it is keyed by. An entry holds the checked program (what ffi.Module.program is: the
 soft PLC and the CODESYS device read its syntax trees too), the library's C declarations and
@@ -31,6 +32,7 @@ from typing import Any
 from .build import BuiltLibrary, cache_dir, cached_library
 from .stdlib import STD_FUNCS, StdFunc
 from .symbols import CheckedProgram
+from .targets import Target
 from .types import ELEMENTARY, ERROR_T, INT_LIT, REAL_LIT, ElemType, LiteralType
 from .units import compiler_version, paused_gc
 
@@ -92,7 +94,8 @@ class ProgramCache:
     def __init__(self, folder: Path | None = None) -> None:
         self.folder = (cache_dir() if folder is None else folder) / "programs"
 
-    def read(self, files: Sequence[Path], library: Sequence[Path]) -> Sources | None:
+    def read(self, files: Sequence[Path], library: Sequence[Path],
+             target: Target) -> Sources | None:
         """The files' bytes and the entry's key; None when a file cannot be read (the
         compilation reports it)."""
         import cffi  # the declarations module is written for one cffi version
@@ -100,6 +103,7 @@ class ProgramCache:
         h = hashlib.sha256(_FORMAT)
         h.update(compiler_version())
         h.update(cffi.__version__.encode())
+        h.update(",".join(sorted(target.dialects)).encode() + b"\0")
         contents: dict[Path, bytes] = {}
         for kind, group in ((b"program", files), (b"library", library)):
             h.update(kind + len(group).to_bytes(8, "little"))

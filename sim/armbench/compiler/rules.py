@@ -1,12 +1,15 @@
 """Portability rules that are not typing: comments, literal forms, reserved and colliding names.
 
-Needs: parsed files (lexical rules) and a CheckedProgram (name rules). The name lists of
-MatIEC's standard library are data files in data/ (see docs/diagnostics.md for each rule).
+Needs: parsed files (lexical rules) and a CheckedProgram (name rules). Reserved names of every
+dialect are in reserved.py; the variable names of MatIEC's standard library are a data file
+in data/ (see docs/diagnostics.md for each rule).
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
@@ -15,27 +18,11 @@ from tree_sitter import Node
 from . import ast as A
 from .diagnostics import Diagnostics
 from .parse import ParsedFile
+from .reserved import matiec_reserves
 from .source import SourcePos
 from .symbols import CheckedProgram
-from .types import ELEMENTARY
 
 DATA = Path(__file__).parent / "data"
-
-KEYWORDS = {
-    "ACTION", "END_ACTION", "ARRAY", "OF", "AT", "CASE", "ELSE", "END_CASE", "CONFIGURATION",
-    "END_CONFIGURATION", "CONSTANT", "DO", "BY", "EXIT", "CONTINUE", "FALSE", "TRUE", "FOR",
-    "TO", "END_FOR", "FROM", "FUNCTION", "END_FUNCTION", "FUNCTION_BLOCK",
-    "END_FUNCTION_BLOCK", "IF", "THEN", "ELSIF", "END_IF", "INITIAL_STEP", "INTERVAL",
-    "NON_RETAIN", "NOT", "AND", "OR", "XOR", "MOD", "ON", "PRIORITY", "PROGRAM", "END_PROGRAM",
-    "READ_ONLY", "READ_WRITE", "REPEAT", "UNTIL", "END_REPEAT", "RESOURCE", "END_RESOURCE",
-    "RETAIN", "RETURN", "SINGLE", "STEP", "END_STEP", "STRUCT", "END_STRUCT", "TASK",
-    "TRANSITION", "END_TRANSITION", "TYPE", "END_TYPE", "VAR", "END_VAR", "VAR_INPUT",
-    "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_EXTERNAL", "VAR_GLOBAL", "VAR_ACCESS",
-    "VAR_CONFIG", "WHILE", "END_WHILE", "WITH", "EN", "ENO", "STRING", "WSTRING", "TIME",
-    "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT", "ANY", "ANY_NUM", "ANY_INT",
-    "ANY_REAL", "ANY_BIT", "ANY_DERIVED", "ANY_ELEMENTARY", "ANY_MAGNITUDE", "ANY_DATE",
-    "ANY_STRING", "REF", "REF_TO", "NULL", "POINTER", "METHOD", "INTERFACE", "EXTENDS",
-}
 
 # Upper-cased, these are C macros of the headers OpenPLC's C build includes.
 _C_MACRO_RE = re.compile(
@@ -54,10 +41,6 @@ _C_MACRO_RE = re.compile(
 def _names(file: str) -> frozenset[str]:
     lines = (DATA / file).read_text().splitlines()
     return frozenset(ln.strip().upper() for ln in lines if ln.strip() and not ln.startswith("#"))
-
-
-def stdlib_pou_names() -> frozenset[str]:
-    return _names("stdlib-pou-names.txt")
 
 
 def stdlib_variable_names() -> frozenset[str]:
@@ -155,53 +138,61 @@ def _snippet(pf: ParsedFile, node: Node, most: int = 40) -> str:
 
 
 # ------------------------------------------------------------------ name rules
-def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
-    pou_names = stdlib_pou_names()
-    var_names = stdlib_variable_names()
+@dataclass(frozen=True)
+class DeclaredName:
+    """A name the program declares, where, as what, and whether it is global (a POU, type,
+    configuration, resource, task or program instance) or local to one (a variable, field or
+    enumeration value)."""
 
-    def reserved(name: str) -> bool:
-        up = name.upper()
-        return up in KEYWORDS or up in ELEMENTARY or up in pou_names
+    name: str
+    pos: SourcePos
+    what: str
+    is_global: bool
 
-    def check(name: str, pos: SourcePos, what: str, global_name: bool) -> None:
-        up = name.upper()
-        if reserved(name):
-            diags.error(pos, "E0202", f"{what} '{name}' is reserved in MatIEC (a keyword, type "
-                        "or standard function/FB name): rename it")
-        elif global_name and up in var_names:
-            diags.error(pos, "E0203", f"{what} '{name}' equals a variable name inside MatIEC's "
-                        "standard library, which then fails to compile: rename it")
-        elif is_c_macro(name):
-            diags.error(pos, "E0204", f"{what} '{name}' becomes the C macro {up} in OpenPLC's "
-                        "build: rename it")
 
+def declared_names(prog: CheckedProgram) -> Iterator[DeclaredName]:
     for unit in prog.units:
         for td in unit.types:
-            check(td.name, td.pos, "type", True)
+            yield DeclaredName(td.name, td.pos, "type", True)
             d = td.definition
             if isinstance(d, A.StructTypeRef):
                 for f in d.fields:
-                    check(f.name, f.pos, "field", False)
+                    yield DeclaredName(f.name, f.pos, "field", False)
             if isinstance(d, A.EnumTypeRef):
                 for v in d.values:
-                    check(v.name, v.pos, "enumeration value", False)
+                    yield DeclaredName(v.name, v.pos, "enumeration value", False)
         for pou in unit.pous:
-            check(pou.name, pou.pos, pou.kind.replace("_", " ").lower(), True)
+            yield DeclaredName(pou.name, pou.pos, pou.kind.replace("_", " ").lower(), True)
             for blk in pou.blocks:
                 for decl in blk.decls:
-                    check(decl.name, decl.pos, "variable", False)
+                    yield DeclaredName(decl.name, decl.pos, "variable", False)
         for cfg in unit.configs:
-            check(cfg.name, cfg.pos, "configuration", True)
+            yield DeclaredName(cfg.name, cfg.pos, "configuration", True)
             for res in cfg.resources:
                 if res.name:
-                    check(res.name, res.pos, "resource", True)
+                    yield DeclaredName(res.name, res.pos, "resource", True)
                 for t in res.tasks:
-                    check(t.name, t.pos, "task", True)
+                    yield DeclaredName(t.name, t.pos, "task", True)
                 for pi in res.programs:
-                    check(pi.name, pi.pos, "program instance", True)
+                    yield DeclaredName(pi.name, pi.pos, "program instance", True)
                 for blk in res.globals:
                     for decl in blk.decls:
-                        check(decl.name, decl.pos, "global", False)
+                        yield DeclaredName(decl.name, decl.pos, "global", False)
             for blk in cfg.globals:
                 for decl in blk.decls:
-                    check(decl.name, decl.pos, "global", False)
+                    yield DeclaredName(decl.name, decl.pos, "global", False)
+
+
+def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
+    var_names = stdlib_variable_names()
+    for n in declared_names(prog):
+        up = n.name.upper()
+        if matiec_reserves(n.name):
+            diags.error(n.pos, "E0202", f"{n.what} '{n.name}' is reserved in MatIEC (a "
+                        "keyword, type or standard function/FB name): rename it")
+        elif n.is_global and up in var_names:
+            diags.error(n.pos, "E0203", f"{n.what} '{n.name}' equals a variable name inside "
+                        "MatIEC's standard library, which then fails to compile: rename it")
+        elif is_c_macro(n.name):
+            diags.error(n.pos, "E0204", f"{n.what} '{n.name}' becomes the C macro {up} in "
+                        "OpenPLC's build: rename it")

@@ -15,6 +15,7 @@ from ..compiler.diagnostics import CompileFailed
 from ..compiler.driver import analyse_program, expand
 from ..compiler.source import read_source
 from ..compiler.symbols import CheckedProgram
+from ..compiler.targets import OPENPLC_ONLY
 from ..locate import Project, default_project
 from .codesys import layout, render_register_map
 from .openplc import contents_lines, render_st
@@ -94,7 +95,8 @@ def load_sources(paths: Sequence[str | Path] | None = None, project: Project | N
     else:
         files = expand(paths)
         lib_files = expand(library or [])
-    analysis = analyse_program(files, lib_files)
+    # what OpenPLC builds, as before targets existed; `armbench check` checks the others
+    analysis = analyse_program(files, lib_files, OPENPLC_ONLY)
     prog = analysis.program
     if prog is None:
         raise CompileFailed(analysis.diagnostics.sorted())

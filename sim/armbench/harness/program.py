@@ -283,10 +283,11 @@ def _analysed(given: Sequence[Path], library: bool
     files it was compiled from, and the library's note. Raises CompileFailed."""
     from ..compiler.diagnostics import CompileFailed
     from ..compiler.driver import analyse_program
+    from ..compiler.targets import OPENPLC_ONLY
     from ..locate import select_library
 
     selection = select_library(given, library)
-    analysis = analyse_program(selection.given, selection.library)
+    analysis = analyse_program(selection.given, selection.library, OPENPLC_ONLY)
     files = (*selection.given, *map(Path, analysis.library.files))
     if analysis.program is None:
         raise CompileFailed(analysis.diagnostics.sorted())

@@ -93,7 +93,8 @@ class Prepared:
 
 _ELBOW = (0, "elbow up"), (1, "elbow down")
 _PROFILES = ((0, "constant speed per joint"), (1, "synchronised constant speed"),
-             (2, "trapezoid"), (3, "jerk-limited"))
+             (2, "trapezoid"), (3, "quintic (jerk-limited)"),
+             (4, "time-optimal jerk-limited"))
 _FOLLOW_MODES = ((1, "start, tip fixed"), (3, "start, flange fixed"), (0, "stop"))
 _TOOL_MODES = ((0, "elbow up, tip fixed"), (1, "elbow down, tip fixed"),
                (2, "elbow up, flange fixed"), (3, "elbow down, flange fixed"))
@@ -171,6 +172,7 @@ COMMANDS: tuple[CommandSpec, ...] = (
                  Field("sz", "Stick Z", "Arg3", default=0.0),
                  Field("speed", "Max speed", "Arg4", default=30.0, unit="mm/s"),
                  Field("accel", "Acceleration", "Arg5", default=200.0, unit="mm/s^2"),
+                 Field("jerk", "Jerk (0 = none)", "Arg6", default=0.0, unit="mm/s^3"),
                  Field("elbow", "Elbow", "Int2", "choice", 0, choices=_ELBOW)),
                 group="Jog"),
     CommandSpec("CmdJogUpdate", "Jog update", "New stick values for the running jog.",
@@ -241,7 +243,9 @@ COMMANDS: tuple[CommandSpec, ...] = (
                        unit="deg"),
                  Field("mroll", "Mount roll", "Arg4", default=0.0, unit="deg"),
                  Field("mpitch", "Mount pitch", "Arg5", default=0.0, unit="deg"),
-                 Field("myaw", "Mount yaw", "Arg6", default=0.0, unit="deg")),
+                 Field("myaw", "Mount yaw", "Arg6", default=0.0, unit="deg"),
+                 Field("jerk", "Jerk limit (0 = none)", "Int2", "int", 0, unit="deg/s^3",
+                       low=0, high=1000000)),
                 group="5-axis"),
     CommandSpec("CmdLutMoveXyz", "Move to X/Y/Z (LUT IK)",
                 "The integer lookup-table IK (0.01 mm in, 0.01 deg out), then the move.",

@@ -1,0 +1,174 @@
+"""The rules only some dialects enforce; their severity comes from the target (targets.py).
+
+Needs: a CheckedProgram (after resolve and rules.check_names; what an erroneous program
+leaves unresolved is skipped). Each rule was established on the real tools:
+
+- E0214: names IEC 61131-3 (3rd edition), CODESYS, TwinCAT or RuSTy reserve and MatIEC does
+  not (reserved.py holds the lists and their sources).
+- E0215: identifiers with "__" or a trailing "_": iec2c refuses both ("invalid located
+  variable declaration"); CODESYS refuses "__".
+- E0309: TRUNC received in an integer narrower than 64 bits: RuSTy's TRUNC returns LINT and it
+  warns E067 "Implicit downcast from 'LINT' to 'DINT'" for an assignment, an argument, a
+  function result or the arithmetic and generic functions (ABS, LIMIT, ...) that carry the
+  value there, not for a comparison, an index, a CASE selector or a FOR bound (measured,
+  ebf72fb8). CODESYS's TRUNC returns DINT. MatIEC types TRUNC from its context: nothing.
+- E0411: an array element (anywhere in the path: a[i], s.v[i], a[i].x) bound to a FUNCTION's
+  VAR_IN_OUT or VAR_OUTPUT inside a FUNCTION_BLOCK or PROGRAM: iec2c wraps such a call in a
+  C helper that spells the element `.table1` and g++ fails ("has no member named 'table1'");
+  the same call inside a FUNCTION, and an FB instance's VAR_IN_OUT given an element, build and
+  run (measured on OpenPLC v3's toolchain). RuSTy takes all of them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from . import ast as A
+from .diagnostics import Diagnostics
+from .reserved import codesys_family_reserves, matiec_reserves
+from .rules import declared_names
+from .symbols import CallTarget, CheckedProgram, PouSym
+from .targets import CODESYS, OPENPLC, Target
+from .types import ElemType, Type
+
+_BOTH = frozenset({OPENPLC, CODESYS})
+_CODESYS = frozenset({CODESYS})
+_OPENPLC = frozenset({OPENPLC})
+
+
+def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    check_reserved_names(prog, diags, target)
+    check_trunc_narrowing(prog, diags, target)
+    check_element_out_arguments(prog, diags, target)
+
+
+# ------------------------------------------------------------------ names
+def check_reserved_names(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    for n in declared_names(prog):
+        name = n.name
+        if "__" in name or name.endswith("_"):
+            double = "__" in name
+            sev = target.severity(_BOTH if double else _OPENPLC)
+            if sev is not None:
+                form, who = (("two underscores in a row", "MatIEC and CODESYS refuse")
+                             if double else ("a trailing underscore", "MatIEC refuses"))
+                diags.report(sev, n.pos, "E0215", f"{n.what} '{name}' has {form}: {who} it; "
+                             "write one underscore between parts and none at the end")
+            continue
+        if matiec_reserves(name):
+            continue  # E0202, an error for every target
+        why = codesys_family_reserves(name)
+        if why is None or not (why.every_name or n.is_global):
+            continue
+        sev = target.severity(_CODESYS)
+        assert sev is not None  # a construct a dialect refuses is at least a warning
+        scope = "as any name" if why.every_name else "as a POU or type name"
+        diags.report(sev, n.pos, "E0214", f"{n.what} '{name}' is {why}, refused there "
+                     f"{scope}: rename it")
+
+
+# ------------------------------------------------------------------ TRUNC
+# Standard functions whose result is the value of one of their inputs; SEL's G and MUX's K,
+# their first inputs, select and are not carried.
+_CARRY_ALL = frozenset({"ABS", "MOVE", "MIN", "MAX", "LIMIT", "MOD"})
+_CARRY_AFTER_SELECTOR = frozenset({"SEL", "MUX"})
+_ARITH = {"+", "-", "*", "/", "MOD"}
+
+
+def check_trunc_narrowing(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    sev = target.severity(frozenset(), warned_by=_CODESYS)
+    if sev is None:
+        return
+    for value, into in _value_sinks(prog):
+        if not (isinstance(into, ElemType) and into.is_int and into.bits < 64):
+            continue
+        for trunc in _truncs_carried(prog, value):
+            diags.report(sev, trunc.pos, "E0309", f"TRUNC goes into {into.name} here: RuSTy's "
+                         "TRUNC returns LINT (CODESYS's DINT), so this narrows there: receive "
+                         f"it in a LINT, or write LINT_TO_{into.name}(TRUNC(...))")
+
+
+def _value_sinks(prog: CheckedProgram) -> Iterator[tuple[A.Expr, Type | None]]:
+    """Every expression whose value is stored into a declared type: assigned (to a variable
+    or a FUNCTION's result) or passed to an input of a POU or a conversion."""
+    for sym in prog.pous.values():
+        if sym.node is None:
+            continue
+        for node in A.walk(sym.node.body):
+            if isinstance(node, A.Assign):
+                yield node.value, prog.expr_types.get(node.target)
+    for tgt in prog.calls.values():
+        if tgt.kind == "conv" and tgt.conv is not None:
+            for _, e in tgt.inputs:
+                yield e, tgt.conv[0]
+        elif tgt.kind in ("function", "fb") and tgt.pou is not None:
+            for key, e in tgt.inputs:
+                param = tgt.pou.vars.get(key)
+                if param is not None and param.kind == A.VAR_INPUT:
+                    yield e, param.type
+
+
+def _truncs_carried(prog: CheckedProgram, value: A.Expr) -> Iterator[A.Call]:
+    """The TRUNC calls whose result ``value`` is, through arithmetic and value-carrying
+    standard functions (a stack: a sum of 20,000 terms is no recursion)."""
+    stack = [value]
+    while stack:
+        e = stack.pop()
+        if isinstance(e, A.Binary):
+            if e.op in _ARITH:
+                stack += (e.left, e.right)
+        elif isinstance(e, A.Unary):
+            if e.op == "-":
+                stack.append(e.operand)
+        elif isinstance(e, A.Call):
+            tgt = prog.calls.get(e)
+            if tgt is None or tgt.kind != "std" or tgt.std is None:
+                continue
+            name = tgt.std.name
+            if name == "TRUNC":
+                yield e
+            elif name in _CARRY_ALL:
+                stack += [arg for _, arg in tgt.inputs]
+            elif name in _CARRY_AFTER_SELECTOR:
+                stack += [arg for _, arg in tgt.inputs[1:]]
+
+
+# ------------------------------------------------------------------ array elements as in-outs
+def check_element_out_arguments(prog: CheckedProgram, diags: Diagnostics,
+                                target: Target) -> None:
+    sev = target.severity(_OPENPLC)
+    if sev is None:
+        return
+    for sym in prog.pous.values():
+        if sym.node is None or sym.kind == "FUNCTION":
+            continue
+        for node in A.walk(sym.node.body):
+            if not isinstance(node, A.Call):
+                continue
+            tgt = prog.calls.get(node)
+            if tgt is None or tgt.kind != "function" or tgt.pou is None:
+                continue
+            for key, e, kind in _bound_by_reference(tgt.pou, tgt):
+                if _through_index(e):
+                    param = tgt.pou.vars[key]
+                    diags.report(sev, e.pos, "E0411", f"array element bound to {kind} "
+                                 f"{param.name} of FUNCTION {tgt.pou.name} in {sym.kind} "
+                                 f"{sym.name}: OpenPLC's C build fails on it; pass a "
+                                 "variable and copy the element in and out")
+
+
+def _bound_by_reference(callee: PouSym, tgt: CallTarget) -> Iterator[tuple[str, A.Expr, str]]:
+    for key, e in tgt.inputs:
+        param = callee.vars.get(key)
+        if param is not None and param.kind == A.VAR_IN_OUT:
+            yield key, e, "VAR_IN_OUT"
+    for key, e in tgt.outputs:
+        yield key, e, "VAR_OUTPUT"
+
+
+def _through_index(e: A.Expr) -> bool:
+    while isinstance(e, A.Member | A.Index):
+        if isinstance(e, A.Index):
+            return True
+        e = e.obj
+    return False

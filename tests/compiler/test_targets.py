@@ -1,0 +1,70 @@
+"""`armbench check --target`: the severity of the dialect rules, and the library clean for
+every target.
+
+The rules themselves are checked against the diagnostics corpus (test_diagnostics.py: one
+positive and one negative case per code, per target) and against the real tools: MatIEC
+(test_diagnostics.test_matiec_rejects) and RuSTy (tests/export/test_rusty.py).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from armbench.compiler.driver import analyse_program
+from armbench.compiler.reserved import codesys_family_reserves, matiec_reserves
+from armbench.compiler.targets import ALL, CODESYS, CODESYS_ONLY, OPENPLC, OPENPLC_ONLY, Target
+from armbench.locate import default_project
+
+
+def test_targets_by_name() -> None:
+    assert Target.named("all") == ALL and ALL.dialects == {OPENPLC, CODESYS}
+    assert Target.named(" OpenPLC ") == OPENPLC_ONLY and OPENPLC_ONLY.name == "openplc"
+    assert Target.named("codesys") == CODESYS_ONLY and ALL.name == "all"
+    with pytest.raises(ValueError, match="unknown target 'twincat': use openplc, codesys, all"):
+        Target.named("twincat")
+
+
+@pytest.mark.parametrize(("target", "refused_by", "warned_by", "want"), [
+    (ALL, {CODESYS}, set(), "error"),
+    (CODESYS_ONLY, {CODESYS}, set(), "error"),
+    (OPENPLC_ONLY, {CODESYS}, set(), "warning"),  # builds where it runs, not everywhere
+    (CODESYS_ONLY, {OPENPLC}, set(), "warning"),
+    (OPENPLC_ONLY, {OPENPLC, CODESYS}, set(), "error"),
+    (ALL, set(), {CODESYS}, "warning"),  # RuSTy only warns: so do we
+    (CODESYS_ONLY, set(), {CODESYS}, "warning"),
+    (OPENPLC_ONLY, set(), {CODESYS}, None),
+    (ALL, set(), set(), None),
+])
+def test_severity(target: Target, refused_by: set[str], warned_by: set[str],
+                  want: str | None) -> None:
+    assert target.severity(frozenset(refused_by), frozenset(warned_by)) == want
+
+
+@pytest.mark.parametrize("name", ["Bit", "bit", "BIT", "Cal", "S", "R", "Ld", "Get", "Endif",
+                                  "ATAN2", "Round", "Lower_Bound", "LTIME", "Namespace",
+                                  "REAL_TRUNC_DINT", "TO_BIG_ENDIAN", "LINT_TO_BCD_WORD"])
+def test_names_other_dialects_reserve(name: str) -> None:
+    assert not matiec_reserves(name)
+    assert codesys_family_reserves(name) is not None
+
+
+@pytest.mark.parametrize("name", ["ChannelBit", "ArcTan2", "Calibration", "Terms", "Coord",
+                                  "Turns", "Reset", "DegToRad", "Vec3", "REAL_TO_Q16"])
+def test_names_no_dialect_reserves(name: str) -> None:
+    assert not matiec_reserves(name)
+    assert codesys_family_reserves(name) is None
+
+
+def test_a_function_name_is_reserved_for_pous_only() -> None:
+    round_, bit = codesys_family_reserves("Round"), codesys_family_reserves("Bit")
+    assert round_ is not None and not round_.every_name
+    assert bit is not None and bit.every_name
+
+
+@pytest.mark.parametrize("target", [ALL, OPENPLC_ONLY, CODESYS_ONLY], ids=lambda t: t.name)
+def test_library_and_controller_are_clean(target: Target) -> None:
+    """st/, plc_project/controller/ and Controller.st: no error and no warning, whatever the
+    target (what `armbench check --target all` checks without files)."""
+    analysis = analyse_program(default_project().sources(), target=target)
+    assert [d.render() for d in analysis.diagnostics.sorted()] == []
+    assert analysis.program is not None
