@@ -36,10 +36,10 @@ SMALL = """
 PROGRAM Main
 VAR
   n : DINT;
-  r : REAL;
+  angle : REAL;
 END_VAR
   n := n + 1;
-  r := DegToRad(DINT_TO_REAL(n));
+  angle := DegToRad(DINT_TO_REAL(n));
 END_PROGRAM
 
 CONFIGURATION Config0
