@@ -109,7 +109,7 @@ def _module_of(prog: CheckedProgram) -> Module:
     from .compiler.ffi import Module
 
     unit = emit(prog)
-    return Module(prog, unit, build(unit).path)
+    return Module(prog, build(unit), unit.decls)
 
 
 _NOT_STANDARD = re.compile(r"^(\w+) is not an IEC standard function")
@@ -169,7 +169,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     unit = emit(_checked(args))
     lib = build(unit)
     dt = time.perf_counter() - t0
-    print(f"{lib.path} ({'cached' if lib.cached else 'built'} in {dt:.3f} s; C: {lib.c_path})")
+    how = "cached" if lib.cached else "built" if lib.units == 1 else \
+        f"built as {lib.units} translation units"
+    print(f"{lib.path} ({how} in {dt:.3f} s; C: {lib.c_path})")
     return EXIT_OK
 
 

@@ -3,7 +3,8 @@
 The files given are the program; ``library`` files are looked up by use (uses.py): only the
 library declarations the program needs are compiled with it. ``target`` (targets.py) says
 which dialects the check is for: a check defaults to all of them, as `armbench check` does;
-compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``openplc``.
+compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``openplc``. Each file's
+front end is cached (units.py), and so is each whole compilation to a Module (programs.py).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from . import ast as A
-from .build import build
+from .build import BuiltLibrary, build
 from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .dialects import check_dialects
 from .emit_c import CUnit, emit
@@ -22,7 +23,7 @@ from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
 from .targets import ALL, OPENPLC_ONLY, Target
-from .units import UnitCache
+from .units import UnitCache, paused_gc
 from .uses import Library, LibraryUse
 
 if TYPE_CHECKING:
@@ -51,11 +52,18 @@ class Analysis:
 
 
 def analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
-                    target: Target = ALL) -> Analysis:
+                    target: Target = ALL, unit_cache: UnitCache | None = None) -> Analysis:
     """Check the program ``paths`` together with the declarations of ``library`` it uses, for
-    the dialects of ``target``."""
+    the dialects of ``target`` (``unit_cache``: the front-end cache to use, e.g. one with the
+    files already read)."""
+    with paused_gc():
+        return _analyse_program(paths, library, target, unit_cache)
+
+
+def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
+                     target: Target, unit_cache: UnitCache | None) -> Analysis:
     diags = Diagnostics()
-    cache = UnitCache()
+    cache = UnitCache() if unit_cache is None else unit_cache
     files = expand(paths)
     fronts = [cache.front(path) for path in files]
     for front in fronts:
@@ -69,8 +77,7 @@ def analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path] =
         units.append(front.unit)
     if diags.has_errors:
         return Analysis(None, diags)
-    given = {path.resolve() for path in files}
-    lib_files = [p for p in expand(library) if p.resolve() not in given]
+    lib_files = library_files(files, library)
     use = LibraryUse()
     if lib_files:
         lib = Library(lib_files, diags, cache)
@@ -87,6 +94,12 @@ def analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path] =
     if use.replaced:
         _explain_replacements(diags, use)
     return Analysis(None if diags.has_errors else prog, diags, use)
+
+
+def library_files(files: Sequence[Path], library: Sequence[str | Path]) -> list[Path]:
+    """The library's files that are not among the program's ``files``."""
+    given = {path.resolve() for path in files}
+    return [p for p in expand(library) if p.resolve() not in given]
 
 
 def _explain_replacements(diags: Diagnostics, use: LibraryUse) -> None:
@@ -112,16 +125,48 @@ def check_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
 
 
 def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
-               target: Target = OPENPLC_ONLY) -> tuple[CheckedProgram, CUnit]:
-    prog, diags = analyse(paths, library, target)
-    if prog is None:
-        raise CompileFailed(diags.sorted())
-    return prog, emit(prog)
+               target: Target = OPENPLC_ONLY, unit_cache: UnitCache | None = None
+               ) -> tuple[CheckedProgram, CUnit]:
+    with paused_gc():
+        a = analyse_program(paths, library, target, unit_cache)
+        if a.program is None:
+            raise CompileFailed(a.diagnostics.sorted())
+        return a.program, emit(a.program)
 
 
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
                   target: Target = OPENPLC_ONLY) -> Module:
+    """The program compiled and loaded: from the cache of compilations (programs.py) when
+    these files were compiled before for ``target``."""
+    with paused_gc():
+        return _compile_files(paths, library, target)
+
+
+def _compile_files(paths: Sequence[str | Path], library: Sequence[str | Path],
+                   target: Target) -> Module:
     from .ffi import Module
-    prog, unit = emit_files(paths, library, target)
-    lib = build(unit)
-    return Module(prog, unit, lib.path)
+    from .programs import ProgramCache
+
+    files = expand(paths)
+    programs = ProgramCache()
+    sources = programs.read(files, library_files(files, library), target)
+    if sources is None:  # a file cannot be read: the compilation reports it
+        prog, unit = emit_files(files, library, target)
+        return Module(prog, build(unit), unit.decls)
+    hit = programs.get(sources)
+    if hit is not None:
+        return Module(hit.program, hit.library, hit.decls)
+    # the files' front ends and the compilation are written to their caches while the C
+    # compiles
+    unit_cache = UnitCache(contents=sources.contents, deferred=True)
+    try:
+        prog, unit = emit_files(files, library, target, unit_cache)
+
+        def meanwhile(lib: BuiltLibrary) -> None:
+            unit_cache.flush()
+            programs.put(sources, prog, unit.decls, lib)
+
+        lib = build(unit, meanwhile=meanwhile)
+    finally:
+        unit_cache.flush()  # what is left: all of it when the files had errors
+    return Module(prog, lib, unit.decls)

@@ -51,11 +51,18 @@ SPILL_EVERY = 100
 
 @dataclass
 class CUnit:
-    """The emitted C: `decls` is valid input for cffi's cdef, `code` the whole source."""
+    """The emitted C: `decls` is valid input for cffi's cdef, `code` the whole source.
+
+    `code` is also `shared`, then every piece of `pieces`, then `main` (after the runtime
+    header): a build may compile the pieces as several translation units, each with the
+    shared part, and `main` in one of them (see build.py)."""
 
     decls: str
     code: str
     c_names: dict[str, str] = field(default_factory=dict)  # ST type key -> C type name
+    shared: str = ""  # types, prototypes, the standard FBs: what every unit needs
+    pieces: list[str] = field(default_factory=list)  # one per POU, callees first
+    main: str = ""  # the program's storage and the configuration's entry points
 
 
 class _Local:
@@ -75,13 +82,15 @@ class Emitter:
         self.typedefs: list[str] = []
         self.type_names: dict[int, str] = {}
         self.declared: set[str] = set()
-        self.forward: list[str] = []  # static prototypes and storage the code refers to
-        self.code: list[str] = []
+        self.forward: list[str] = []  # prototypes and constants the code refers to
         self.protos: list[str] = []
         self.cur: PouSym | None = None
         self.loc = _Local()
         self.unmapped = 0
+        self.storage: list[str] = []  # the definitions of the current piece's unmapped storage
         self.ffi_only: list[str] = []
+        self.std_code: list[str] = []
+        self.pieces: list[str] = []
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -125,9 +134,10 @@ class Emitter:
             cname = self.ctype(t)
             body = "".join(f"    {ELEMENTARY[f.type].ctype} {f.name};\n" for f in fields)
             self.typedefs.append(f"typedef struct {{\n{body}}} {cname};\n")
-            self.code.append(f"static void {cname}_init({cname} *s) "
-                             "{ memset(s, 0, sizeof *s); }\n"
-                             f"static void {cname}_body({cname} *s) {{{STD_FB_BODIES[name]}\n}}\n")
+            self.std_code.append(f"static void {cname}_init({cname} *s) "
+                                 "{ memset(s, 0, sizeof *s); }\n"
+                                 f"static void {cname}_body({cname} *s) "
+                                 f"{{{STD_FB_BODIES[name]}\n}}\n")
         for t in self.p.types.values():
             if isinstance(t, StructType | ArrayType):
                 self.ctype(t)
@@ -141,14 +151,15 @@ class Emitter:
         self.globals_struct()
         for sym in self.p.pous.values():
             self.pou_code(sym)
-        self.config_code()
-        decls = IMAGE_DECL + "".join(self.typedefs) + API_DECL + "".join(self.protos)
-        code = ("#include \"iec_runtime.h\"\n" + decls +
-                "#ifndef ARMBENCH_BARE_METAL\n"
+        main = ("#ifndef ARMBENCH_BARE_METAL\n"
                 "plc_image_t plc_image;\nplc_globals_t plc_globals;\n#endif\n" +
-                "".join(self.forward) + "".join(self.code))
-        return CUnit(decls + "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
-                     + "".join(self.ffi_only), code)
+                self.config_code())
+        decls = IMAGE_DECL + "".join(self.typedefs) + API_DECL + "".join(self.protos)
+        storage = "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
+        shared = decls + storage + "".join(self.forward) + "".join(self.std_code)
+        code = "#include \"iec_runtime.h\"\n" + shared + "".join(self.pieces) + main
+        return CUnit(decls + storage + "".join(self.ffi_only), code, shared=shared,
+                     pieces=self.pieces, main=main)
 
     def pou_struct(self, sym: PouSym) -> None:
         cname = self.pou_cname(sym)
@@ -161,6 +172,7 @@ class Emitter:
                 # one read-only copy for all instances and calls, not one per instance
                 # cffi (ABI mode) reads it as a plain global; C sees the const definition
                 self.ffi_only.append(f"extern {ct} {const_name(cname, v)};\n")
+                self.forward.append(f"extern const {ct} {const_name(cname, v)};\n")
                 continue
             ptr = "*" if v.kind == A.VAR_IN_OUT or v.address else ""
             lines.append(f"    {ct} {ptr}{v.key};\n")
@@ -300,7 +312,7 @@ class Emitter:
                     self.init_value(f"(*self->{v.key})", v.type, v.init, init)
                 continue
             self.init_value(f"self->{v.key}", v.type, v.init, init)
-        self.forward.append(f"static void {cname}_body({cname} *self);\n")
+        self.forward.append(f"PLC__INTERNAL void {cname}_body({cname} *self);\n")
         temps: list[str] = []
         if sym.kind != "FUNCTION":  # a FUNCTION's frame is initialised on every call anyway
             for v in sym.vars.values():
@@ -309,13 +321,14 @@ class Emitter:
                     self.init_value(f"self->{v.key}", v.type, v.init, temps)
         body = ("    int plc__brk_ = 0;\n    (void)plc__brk_;\n" +
                 "".join(f"    {t}\n" for t in temps) + self.block(sym.node.body, 1))
-        self.code.append(
-            consts +
+        self.pieces.append(
+            "".join(self.storage) + consts +
             f"void {cname}_init({cname} *self) {{\n    " + "\n    ".join(init) + "\n}\n"
-            f"static void {cname}_body({cname} *self) {{\n{body}}}\n"
+            f"PLC__INTERNAL void {cname}_body({cname} *self) {{\n{body}}}\n"
             f"int {cname}_run({cname} *self) {{\n"
             f"    if (setjmp(plc__jmp)) return 1;\n    plc__wd_begin();\n"
             f"    {cname}_body(self);\n    return 0;\n}}\n")
+        self.storage = []
         self.cur = None
 
     def address_ptr(self, v: VarSym) -> str:
@@ -329,11 +342,12 @@ class Emitter:
         if arr is None:
             # valid in OpenPLC but outside its Modbus map: plain storage of its own
             self.unmapped += 1
-            self.forward.append(f"static {ct} plc__unmapped_{self.unmapped};\n")
+            # beside the one function that points to it: in the same translation unit
+            self.storage.append(f"static {ct} plc__unmapped_{self.unmapped};\n")
             return f"&plc__unmapped_{self.unmapped}"
         return f"({ct} *)&plc_image.{arr}[{nums[0]}]"
 
-    def config_code(self) -> None:
+    def config_code(self) -> str:
         cfg = self.p.config
         lines = ["memset(&plc_globals, 0, sizeof plc_globals);"]
         tasks: list[str] = []
@@ -353,8 +367,9 @@ class Emitter:
                     f"        {self.pou_cname(inst.pou)}_body(&plc_globals.{inst.name.upper()});\n"
                     for inst in cfg.instances if (inst.task or "").upper() == task.name.upper())
                 tasks.append(f"    case {i}:\n{runs}        break;\n")
-        self.code.append(
-            "#ifndef ARMBENCH_BARE_METAL\n"
+        storage, self.storage = "".join(self.storage), []
+        return (
+            "#ifndef ARMBENCH_BARE_METAL\n" + storage +
             "void plc_config_init(void) {\n    " + "\n    ".join(lines) + "\n}\n"
             "static plc_image_t plc__image_backup;\n"
             "int plc_run_task(int task) {\n"

@@ -1,5 +1,6 @@
-"""FFI: load a built library with cffi and drive it from Python. The only compiler module
-importing cffi (the soft PLC's Modbus fast path, softplc/fastpath.py, loads its own library).
+"""FFI: load a built library with cffi and drive it from Python. With declarations.py, which
+writes the library's C declarations for cffi, the only compiler module importing cffi (the soft
+PLC's Modbus fast path, softplc/fastpath.py, loads its own library).
 
 `Module.call` runs any FUNCTION, `Module.new_fb` / `new_program` make instances whose inputs,
 outputs and internals are read and written by (case-insensitive) ST name; values cross as
@@ -13,16 +14,17 @@ import shutil
 import sys
 import tempfile
 from collections.abc import Sequence
-from pathlib import Path
-from typing import Any
-
-import cffi
+from typing import TYPE_CHECKING, Any
 
 from ..faults import PlcFault
 from . import ast as A
-from .emit_c import CUnit, const_name, is_shared_constant
+from .declarations import load_declarations
+from .emit_c import const_name, is_shared_constant
 from .symbols import CheckedProgram, PouSym, VarSym
 from .types import ArrayType, ElemType, EnumType, PouType, StructType, Type
+
+if TYPE_CHECKING:
+    from .build import BuiltLibrary
 
 
 class PlcArgumentError(ValueError):
@@ -36,7 +38,7 @@ def _pou_cname(sym: PouSym) -> str:
 class Values:
     """Converts between cffi data and Python values, guided by the ST type."""
 
-    def __init__(self, ffi: cffi.FFI) -> None:
+    def __init__(self, ffi: Any) -> None:
         self.ffi = ffi
 
     def to_py(self, c: Any, t: Type) -> Any:
@@ -217,16 +219,18 @@ class Instance:
 
 
 class Module:
-    """A compiled set of ST files loaded into this process."""
+    """A compiled set of ST files loaded into this process.
 
-    def __init__(self, prog: CheckedProgram, unit: CUnit, library: Path) -> None:
+    ``decls`` are the library's C declarations (CUnit.decls): its declarations module is
+    written anew from them should it be unusable."""
+
+    def __init__(self, prog: CheckedProgram, library: BuiltLibrary, decls: str) -> None:
         self.program = prog
-        self.ffi = cffi.FFI()
-        self.ffi.cdef(unit.decls)
+        self.ffi: Any = load_declarations(library.declarations, decls)
         # a private copy: two Modules built from the same sources must not share C globals
         fd, private = tempfile.mkstemp(suffix=".so", prefix="armbench_")
         os.close(fd)
-        shutil.copyfile(library, private)
+        shutil.copyfile(library.path, private)
         try:
             self.lib: Any = self.ffi.dlopen(private)
         finally:

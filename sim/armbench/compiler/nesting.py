@@ -67,7 +67,7 @@ _NAMES = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # not frozen: one per syntax node, and a frozen init costs twice
 class _Frame:
     node: ts.Node
     stack: int  # symbols on MatIEC's stack when the node starts (its prefix included)
@@ -213,9 +213,18 @@ def _closing(node: ts.Node) -> int:
     return 3  # a op b, ( e ), x := e, v . f, stmt ';' after stmt_list, ...
 
 
+# leaves whose count depends on their text; statements that are one token and its ';' (2)
+_TEXT_LEAVES = frozenset({"time_literal", "date_literal", "time_of_day_literal",
+                          "date_and_time_literal", "integer_literal", "real_literal"})
+_STATEMENT_LEAVES = frozenset({"empty_statement", "exit_statement", "return_statement",
+                               "continue_statement"})
+
+
 def _leaf(node: ts.Node) -> int:
     """Symbols a token sequence without named children takes (measured one by one)."""
     t = node.type
+    if t not in _TEXT_LEAVES:
+        return 2 if t in _STATEMENT_LEAVES else 1
     text = node.text.decode("utf-8", "replace") if node.text is not None else ""
     if t == "time_literal":  # T#1h2m3s 7, TIME#1s 8, T#-1s 8, TIME#-1s 9
         return 7 + (1 if text.upper().startswith("TIME#") else 0) + (1 if "#-" in text else 0)
@@ -225,8 +234,4 @@ def _leaf(node: ts.Node) -> int:
         return 7
     if t == "date_and_time_literal":
         return 9
-    if t in ("integer_literal", "real_literal"):
-        return 2 if text[:1] in "+-" else 1
-    if t in ("empty_statement", "exit_statement", "return_statement", "continue_statement"):
-        return 2  # the statement and its ';'
-    return 1
+    return 2 if text[:1] in "+-" else 1  # integer_literal, real_literal

@@ -39,7 +39,8 @@ class ParsedFile:
     guarded: bool = False
 
     def pos(self, node: ts.Node) -> SourcePos:
-        return SourcePos(self.path, node.start_point.row + 1, self._col(node.start_point))
+        point = node.start_point  # a new object per call: asked once
+        return SourcePos(self.path, point.row + 1, self._col(point))
 
     def pos_at_byte(self, offset: int) -> SourcePos:
         line = 0

@@ -1,8 +1,9 @@
 """The front end of a file (parse, nesting guard, lexical rules, lowering), cached by content.
 
 The result for a file depends only on its path (positions name it) and its bytes, and on the
-compiler itself: it is pickled under the build cache folder (build.cache_dir) with a key
-hashing all three, so an unchanged library file is never parsed or lowered twice. A cache
+compiler itself (its Python sources, its data and runtime files, the grammar and the Python it
+runs on): it is pickled under the build cache folder (build.cache_dir) with a key hashing all
+three, so an unchanged library file is never parsed or lowered twice. A cache
 entry that cannot be read back (truncated, corrupt, from another Python) is ignored and
 written anew; a cache folder that cannot be written to only costs the time saved.
 """
@@ -15,6 +16,8 @@ import os
 import pickle
 import sys
 import tempfile
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,26 +45,60 @@ class FileFront:
         return any(d.severity == "error" for d in self.syntax)
 
 
+@contextmanager
+def paused_gc() -> Iterator[None]:
+    """The cyclic garbage collector off while a compilation builds its trees: it would scan
+    them (and everything else the process holds) again and again as they grow, and they hold
+    no garbage cycles worth collecting before the compilation ends. Back on afterwards, unless
+    it was off before (e.g. paused by an enclosing compilation)."""
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collecting:
+            gc.enable()
+
+
 def compiler_version() -> bytes:
-    """A digest of the compiler's own sources and of the grammar and Python it runs on: a
-    cache entry written by another compiler is never read."""
+    """A digest of the compiler's own sources, data and runtime files (the name lists of
+    rules.py, the C runtime header) and of the grammar and Python it runs on: a cache entry
+    written by another compiler is never read."""
     import tree_sitter_iec61131_3_st as st_grammar
 
     h = hashlib.sha256(_FORMAT)
     h.update(sys.version.encode())
     h.update(str(Path(st_grammar.__file__).stat().st_mtime_ns).encode())
-    for source in sorted(_COMPILER_DIR.glob("*.py")):
-        h.update(source.name.encode())
-        h.update(source.read_bytes())
+    sources = [*_COMPILER_DIR.glob("*.py"), *(_COMPILER_DIR / "data").iterdir(),
+               *(_COMPILER_DIR / "runtime").iterdir()]
+    for source in sorted(sources):
+        if source.is_file():
+            h.update(str(source.relative_to(_COMPILER_DIR)).encode())
+            data = source.read_bytes()
+            h.update(len(data).to_bytes(8, "little"))
+            h.update(data)
     return h.digest()
 
 
 class UnitCache:
-    """Per-file front-end results and declared names, pickled under ``folder``."""
+    """Per-file front-end results and declared names, pickled under ``folder``.
 
-    def __init__(self, folder: Path | None = None) -> None:
+    ``contents``: files already read (path -> bytes), taken from there instead of the disk,
+    so that a compilation reads each file once (see programs.py). ``deferred``: entries are
+    written by ``flush``, not when made (a build writes them while the C compiler runs)."""
+
+    def __init__(self, folder: Path | None = None,
+                 contents: Mapping[Path, bytes] | None = None, deferred: bool = False) -> None:
         self.folder = (cache_dir() if folder is None else folder) / "units"
         self._version = compiler_version()
+        self._contents = {} if contents is None else contents
+        self._deferred = deferred
+        self._pending: list[tuple[Path, object]] = []
+
+    def read(self, path: Path) -> bytes:
+        """The file's bytes (OSError when it cannot be read)."""
+        data = self._contents.get(path)
+        return path.read_bytes() if data is None else data
 
     def _key(self, kind: str, path: Path, data: bytes) -> Path:
         h = hashlib.sha256(self._version)
@@ -76,21 +113,27 @@ class UnitCache:
                 blob = f.read()
         except OSError:
             return None
-        # The collector would scan the tree again and again while it is being built: off for
-        # the load, which makes no cycles worth collecting.
-        collecting = gc.isenabled()
-        gc.disable()
         try:
-            value = pickle.loads(blob)
+            with paused_gc():
+                value = pickle.loads(blob)
         except Exception:  # noqa: BLE001 - any unreadable entry is a miss, then rewritten
             return None
-        finally:
-            if collecting:
-                gc.enable()
         return value if isinstance(value, want) else None
 
     def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
         target = self._key(kind, path, data)
+        if self._deferred:
+            self._pending.append((target, value))
+        else:
+            self._write(target, value)
+
+    def flush(self) -> None:
+        """Write the entries ``put`` deferred."""
+        pending, self._pending = self._pending, []
+        for target, value in pending:
+            self._write(target, value)
+
+    def _write(self, target: Path, value: object) -> None:
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             # a temporary name, then a rename: a concurrent reader never sees half a file
@@ -109,7 +152,7 @@ class UnitCache:
         """The file through the front end (``data``: its bytes when already read)."""
         if data is None:
             try:
-                data = path.read_bytes()
+                data = self.read(path)
             except OSError as exc:
                 return FileFront([Diagnostic(SourcePos(str(path), 1, 1), "E0001",
                                              f"cannot read {path}: {exc}")], None)

@@ -200,7 +200,7 @@ class Library:
         self._files: dict[str, tuple[Path, bytes]] = {}
         for path in paths:
             try:
-                data = path.read_bytes()
+                data = self.cache.read(path)
             except OSError:
                 continue
             names = self.cache.get("names", path, data, dict)

@@ -659,7 +659,7 @@ def serve_program(program: PlcProgram, host: str = "127.0.0.1",
     if checked is None:
         raise ProgramError("the program was not checked: build it with PlcProgram.load")
     unit = emit(checked)
-    loaded = LoadedProgram(Module(checked, unit, build(unit).path))
+    loaded = LoadedProgram(Module(checked, build(unit), unit.decls))
     try:
         plc, server = soft_plc(loaded, program.flavor, host=host, port=port)
     except ValueError as exc:  # a variable the CODESYS layout cannot bind to the image

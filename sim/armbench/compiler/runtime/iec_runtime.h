@@ -9,18 +9,36 @@
 #include <setjmp.h>
 #include <time.h>
 
-static jmp_buf plc__jmp;
-static const char *plc__fault_pos = "";
-static const char *plc__fault_msg = "";
-static int64_t plc__now_ns = 0;          /* the scan's time, set by the soft PLC */
-static int64_t plc__wd_limit_ns = 1000000000; /* watchdog budget of one scan */
-static int64_t plc__wd_start_ns = 0;
-static uint32_t plc__wd_count = 0;
+/* One program is one translation unit, or, for a faster build of a large one, several
+ * compiled in parallel and linked into one library (ARMBENCH_SPLIT defined in each, and
+ * ARMBENCH_SPLIT_MAIN in the one that owns the state below). The state and the POU bodies
+ * the units share have hidden linkage then: one copy per library, invisible outside it. */
+#ifndef ARMBENCH_SPLIT
+#define PLC__INTERNAL static
+#define PLC__STATE(decl, init) static decl = init
+#else
+#define PLC__INTERNAL __attribute__((visibility("hidden")))
+#ifdef ARMBENCH_SPLIT_MAIN
+#define PLC__STATE(decl, init) PLC__INTERNAL decl = init
+#else
+#define PLC__STATE(decl, init) extern PLC__INTERNAL decl
+#endif
+#endif
 
+PLC__STATE(jmp_buf plc__jmp, {0});
+PLC__STATE(const char *plc__fault_pos, "");
+PLC__STATE(const char *plc__fault_msg, "");
+PLC__STATE(int64_t plc__now_ns, 0);          /* the scan's time, set by the soft PLC */
+PLC__STATE(int64_t plc__wd_limit_ns, 1000000000); /* watchdog budget of one scan */
+PLC__STATE(int64_t plc__wd_start_ns, 0);
+PLC__STATE(uint32_t plc__wd_count, 0);
+
+#if !defined(ARMBENCH_SPLIT) || defined(ARMBENCH_SPLIT_MAIN)
 const char *plc_fault_pos(void) { return plc__fault_pos; }
 const char *plc_fault_msg(void) { return plc__fault_msg; }
 void plc_set_time(int64_t ns) { plc__now_ns = ns; }
 void plc_set_watchdog(int64_t ns) { plc__wd_limit_ns = ns; }
+#endif
 
 static __attribute__((noreturn, noinline, cold)) void plc__fault(const char *pos, const char *msg) {
     plc__fault_pos = pos;
