@@ -25,7 +25,7 @@ from .compiler.diagnostics import Diagnostic, Diagnostics
 from .compiler.driver import Analysis, analyse_program, expand
 from .compiler.emit_c import emit
 from .compiler.symbols import CheckedProgram
-from .compiler.targets import OPENPLC_ONLY, TARGET_NAMES, Target
+from .compiler.targets import CODESYS_ONLY, OPENPLC_ONLY, TARGET_NAMES, Target
 from .compiler.uses import Library
 from .demo_options import add_demo_arguments, add_follow_arguments
 from .faults import PlcFault
@@ -421,7 +421,24 @@ def cmd_export(args: argparse.Namespace) -> int:
         return EXIT_FAIL if stale else EXIT_OK
     for path in exp.write(out):
         print(f"wrote {path}")
+    if args.files and not args.regenerate:
+        _warn_codesys_refusals(args)
     return EXIT_OK
+
+
+def _warn_codesys_refusals(args: argparse.Namespace) -> None:
+    """The export checked the files for OpenPLC; its CODESYS XML holds the same text, so say
+    (without failing the export) what a CODESYS-family compiler would refuse in it."""
+    selection = _select(args)
+    refused = [d for d in analyse_program(selection.given, selection.library,
+                                          CODESYS_ONLY).diagnostics.sorted()
+               if d.severity == "error"]
+    for d in refused:
+        print(f"armbench export: warning: CODESYS refuses this: {d.render()}", file=sys.stderr)
+    if refused:
+        print(f"armbench export: warning: the OpenPLC upload is fine; the CODESYS variant needs "
+              f"the {len(refused)} change{'s' if len(refused) != 1 else ''} above "
+              f"(`armbench check --target codesys`, docs/diagnostics.md)", file=sys.stderr)
 
 
 def _library_option(p: argparse.ArgumentParser) -> None:

@@ -176,3 +176,40 @@ def test_regenerate_needs_a_checkout(tmp_path: Path, monkeypatch: pytest.MonkeyP
     # from inside the checkout (any subfolder) it verifies the committed exports
     monkeypatch.chdir(REPO / "docs")
     assert main(["export", "--regenerate", "--check"]) == 0
+
+
+KEYWORD_NAMES = """PROGRAM Main
+  VAR
+    r : REAL;
+    n : DINT;
+  END_VAR
+  n := n + 1;
+  r := DINT_TO_REAL(n);
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK task0(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM inst0 WITH task0 : Main;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+
+def test_export_warns_what_codesys_refuses_and_still_exports(
+        prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The export builds for OpenPLC; its CODESYS XML carries the same names, so a name
+    CODESYS keeps as a keyword (R, IL's reset operator) is a warning there, not a failure."""
+    user = tmp_path / "user.st"
+    user.write_text(KEYWORD_NAMES)
+    out = tmp_path / "out"
+    assert main(["export", str(user), "--out", str(out)]) == 0
+    assert (out / "openplc" / "Main.st").is_file()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2, err
+    assert "CODESYS refuses this" in err[0] and "E0214" in err[0] and "'r'" in err[0].lower()
+    assert "the OpenPLC upload is fine" in err[1] and "1 change " in err[1]
+    clean = tmp_path / "clean.st"
+    clean.write_text(prog.read_text())
+    assert main(["export", str(clean), "--out", str(tmp_path / "out2")]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -36,7 +36,8 @@ severity follows the target: an **error** when a dialect you check for refuses t
 a **warning** when only one you do not check for refuses it (it builds where you deploy, not
 everywhere) or when one you check for only warns. `all` is the default because the library
 must build everywhere. `build`, `run`, `serve` and `export` compile what OpenPLC runs: they use
-`openplc` and fail only on its errors.
+`openplc` and fail only on its errors; `export`, whose CODESYS XML carries the same text,
+also prints what `codesys` refuses, as warnings.
 
 | code | `--target openplc` | `--target codesys` | `--target all` |
 |---|---|---|---|
