@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from .atomic import write_atomic
 from .emit_c import CUnit
 
 RUNTIME_DIR = Path(__file__).parent / "runtime"
@@ -134,7 +135,7 @@ def build(unit: CUnit, extra_flags: tuple[str, ...] = (), jobs: int | None = Non
     # Written under a temporary name and renamed, like the library: a concurrent build of the
     # same program (pytest-xdist workers on a cold cache) must never truncate the file while
     # this one's compiler reads it.
-    _write_atomic(c_path, unit.code)
+    write_atomic(c_path, unit.code, suffix=c_path.suffix)
     cc = find_cc()
     groups = plan_units(unit.pieces, usable_cpus() if jobs is None else jobs, min_unit_bytes)
     built = _library(digest, len(groups))
@@ -208,14 +209,3 @@ def _compile(jobs: list[tuple[Path, list[str]]], meanwhile: Callable[[], None]) 
         src, output = failed
         raise BuildError(f"the C compiler rejected the generated code ({src}):\n"
                          f"{output[:4000]}")
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

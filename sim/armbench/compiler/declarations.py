@@ -7,14 +7,14 @@ cffi a tenth of a second or more to parse, the module a few milliseconds to run.
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import _cffi_backend
 import cffi
 import cffi.recompiler
+
+from .atomic import write_atomic
 
 # the name cffi gives the declarations (it appears in its error messages only)
 _DECLARATIONS_NAME = "armbench_plc"
@@ -27,14 +27,7 @@ def write_declarations(decls: str, path: Path) -> None:
     ffi.cdef(decls)
     text = io.StringIO()
     cffi.recompiler.make_py_source(ffi, _DECLARATIONS_NAME, text)
-    fd, tmp = tempfile.mkstemp(suffix=".py", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text.getvalue())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, text.getvalue(), suffix=".py")
 
 
 def load_declarations(path: Path, decls: str) -> Any:

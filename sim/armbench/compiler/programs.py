@@ -21,14 +21,13 @@ from __future__ import annotations
 import copyreg
 import hashlib
 import io
-import os
 import pickle
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .atomic import write_atomic
 from .build import BuiltLibrary, cache_dir, cached_library
 from .stdlib import STD_FUNCS, StdFunc
 from .symbols import CheckedProgram
@@ -152,13 +151,6 @@ class ProgramCache:
         target = self._path(sources)
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=target.parent)
-            try:
-                with os.fdopen(fd, "wb") as f:
-                    f.write(out.getvalue())
-                os.replace(tmp, target)
-            except BaseException:
-                Path(tmp).unlink(missing_ok=True)
-                raise
+            write_atomic(target, out.getvalue())
         except OSError:
             pass  # not cached: the next run compiles again

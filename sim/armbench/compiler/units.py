@@ -12,16 +12,15 @@ from __future__ import annotations
 
 import gc
 import hashlib
-import os
 import pickle
 import sys
-import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import ast as A
+from .atomic import write_atomic
 from .build import cache_dir
 from .diagnostics import Diagnostic, Diagnostics
 from .frontend import check_syntax, drop_syntax_cascades, parse_source
@@ -136,15 +135,7 @@ class UnitCache:
     def _write(self, target: Path, value: object) -> None:
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
-            # a temporary name, then a rename: a concurrent reader never sees half a file
-            fd, tmp = tempfile.mkstemp(suffix=".tmp", dir=target.parent)
-            try:
-                with os.fdopen(fd, "wb") as f:
-                    pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
-                os.replace(tmp, target)
-            except BaseException:
-                Path(tmp).unlink(missing_ok=True)
-                raise
+            write_atomic(target, pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
         except (OSError, pickle.PicklingError, RecursionError):
             pass  # not cached: the next run does the work again
 
