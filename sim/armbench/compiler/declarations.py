@@ -6,15 +6,14 @@ cffi a tenth of a second or more to parse, the module a few milliseconds to run.
 
 from __future__ import annotations
 
-import io
+import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import _cffi_backend
 import cffi
 import cffi.recompiler
-
-from .atomic import write_atomic
 
 # the name cffi gives the declarations (it appears in its error messages only)
 _DECLARATIONS_NAME = "armbench_plc"
@@ -25,9 +24,11 @@ def write_declarations(decls: str, path: Path) -> None:
     module, under a temporary name first: a concurrent reader never sees half a file."""
     ffi = cffi.FFI()
     ffi.cdef(decls)
-    text = io.StringIO()
-    cffi.recompiler.make_py_source(ffi, _DECLARATIONS_NAME, text)
-    write_atomic(path, text.getvalue(), suffix=".py")
+    # cffi before 2.0 writes only to a file name, not to a file object
+    with tempfile.TemporaryDirectory(dir=path.parent) as folder:
+        module = Path(folder) / path.name
+        cffi.recompiler.make_py_source(ffi, _DECLARATIONS_NAME, str(module))
+        os.replace(module, path)
 
 
 def load_declarations(path: Path, decls: str) -> Any:
