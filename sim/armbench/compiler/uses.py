@@ -49,7 +49,7 @@ class Declaration:
         return f"{self.kind} {self.name}"
 
 
-def _references(node: object, local: frozenset[str]) -> frozenset[str]:
+def references(node: object, local: frozenset[str] = frozenset()) -> frozenset[str]:
     """Upper-cased names below ``node`` that may name a global declaration: types, POUs,
     enumeration values. Names of ``local`` variables are not global references; their types
     are."""
@@ -78,17 +78,17 @@ def declarations(unit: A.SourceUnit) -> list[Declaration]:
         if isinstance(t.definition, A.EnumTypeRef):
             names |= {v.name.upper() for v in t.definition.values}
         out.append(Declaration(t.name, "TYPE", t.pos, frozenset(names),
-                               _references(t, frozenset()) - names, t))
+                               references(t, frozenset()) - names, t))
     for p in unit.pous:
         local = frozenset({p.name.upper()} | {d.name.upper() for b in p.blocks for d in b.decls})
         out.append(Declaration(p.name, p.kind, p.pos, frozenset({p.name.upper()}),
-                               _references(p, local) - {p.name.upper()}, p))
+                               references(p, local) - {p.name.upper()}, p))
     for c in unit.configs:
         local = frozenset(d.name.upper() for b in [*c.globals, *(g for r in c.resources
                                                                  for g in r.globals)]
                           for d in b.decls)
         out.append(Declaration(c.name, "CONFIGURATION", c.pos, frozenset(),
-                               _references(c, local), c))
+                               references(c, local), c))
     return out
 
 

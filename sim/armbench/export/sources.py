@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..compiler import ast as A
+from ..compiler.uses import references
 from ..locate import Project, default_project
 
 
@@ -53,17 +54,7 @@ def declared_names(unit: A.SourceUnit) -> set[str]:
 
 
 def used_names(unit: A.SourceUnit) -> set[str]:
-    used: set[str] = set()
-    for node in A.walk(unit):
-        if isinstance(node, A.NamedTypeRef | A.Name):
-            used.add(node.name.upper())
-        elif isinstance(node, A.Literal) and node.type_prefix:
-            used.add(node.type_prefix.upper())
-        elif isinstance(node, A.ProgramInst):
-            used.add(node.type_name.upper())
-        elif isinstance(node, A.SubrangeTypeRef):
-            used.add(node.base.upper())
-    return used
+    return set(references(unit))
 
 
 def dependency_order(units: Sequence[A.SourceUnit]) -> list[int]:
