@@ -143,12 +143,7 @@ def main() -> int:
     opts = ap.parse_args()
     rb.ensure_tools()
     root = opts.build_dir or Path(tempfile.mkdtemp(prefix="armbench_chain_"))
-    snap = root / "st_snapshot"
-    snap.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name in FILES:
-        (snap / name).write_bytes((rb.ST / name).read_bytes())
-        files.append(snap / name)
+    files = rb.snapshot_st(root, list(FILES))
     method = rb.Method("chain", "003 line (ChainResolvedRateFixed)", files, POU)
     method.args = call_args()
     prog, unit = emit_files(files)

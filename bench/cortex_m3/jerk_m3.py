@@ -207,12 +207,7 @@ def main() -> int:
     opts = ap.parse_args()
     rb.ensure_tools()
     build_root = opts.build_dir or Path(tempfile.mkdtemp(prefix="armbench_cm3_jerk_"))
-    snap = build_root / "st_snapshot"
-    snap.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name in FILES:
-        (snap / name).write_bytes((rb.ST / name).read_bytes())
-        files.append(snap / name)
+    files = rb.snapshot_st(build_root, list(FILES))
     ld = build_root / "lm3s6965.ld"
     ld.write_text(LD_SCRIPT)
     # the IK bench's board has 8 KB of SRAM: this one runs on the LM3S6965 (64 KB)

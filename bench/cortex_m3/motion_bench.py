@@ -33,8 +33,11 @@ import run_bench as rb  # noqa: E402  (the shared Cortex-M3 harness next to this
 from armbench.compiler import compile_files  # noqa: E402
 from armbench.compiler.driver import emit_files  # noqa: E402
 
+# MotionJoint.st plans profile 4 with the jerk-limited blocks
 FILES = ["ArmAngles.st", "Kinematics.st", "MotionTypes.st", "MotionProfiles.st",
-         "MotionJoint.st", "MotionLine.st"]
+         "MotionJerkTypes.st", "MotionJerkRoots.st", "MotionJerkProfile.st",
+         "MotionJerkStep1.st", "MotionJerkStep2.st", "MotionJerkVelocity.st",
+         "MotionJerkSync.st", "MotionJerkOnline.st", "MotionJoint.st", "MotionLine.st"]
 DELTAS = (100, -37, 64)
 PLAN_ARGS = {"Dist": 120.0, "V0": 20.0, "VMax": 60.0, "Acc": 150.0}
 N_TIMES = 200
@@ -120,12 +123,7 @@ def main() -> int:
     opts = ap.parse_args()
     rb.ensure_tools()
     build_root = opts.build_dir or Path(tempfile.mkdtemp(prefix="armbench_cm3_motion_"))
-    snap = build_root / "st_snapshot"
-    snap.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name in FILES:
-        (snap / name).write_bytes((rb.ST / name).read_bytes())
-        files.append(snap / name)
+    files = rb.snapshot_st(build_root, list(FILES))
 
     host = compile_files(files)
     prog, unit = emit_files(files)

@@ -97,6 +97,16 @@ def apt_package_for_qemu() -> str:
     return "qemu-system-arm"
 
 
+def snapshot_st(build_root: Path, names: list[str]) -> list[Path]:
+    """Copies of the named st/ files under build_root/st_snapshot: the ST files may be edited
+    while a benchmark runs, so C is emitted and the host reference run from one snapshot."""
+    snap = build_root / "st_snapshot"
+    snap.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (snap / name).write_bytes((ST / name).read_bytes())
+    return [snap / name for name in names]
+
+
 def ensure_tools() -> None:
     missing = missing_tools()
     if not missing:
