@@ -72,6 +72,14 @@ def _paren(n: int) -> str:
     return _main("x := " + _wrap(n, "(", ")", "x") + ";")
 
 
+def _paren_time(n: int) -> str:  # a literal of 7 stack entries where a name takes 1
+    return _main("t := " + _wrap(n, "(", ")", "T#1s") + ";", decls="  t : TIME;\n")
+
+
+def _paren_neg_time(n: int) -> str:  # a signed duration: 8 entries
+    return _main("t := " + _wrap(n, "(", ")", "T#-1s") + ";", decls="  t : TIME;\n")
+
+
 def _paren_sum(n: int) -> str:  # a + (a + (a + ...)): nested to the right
     return _main("x := " + "(x + " * n + "x" + ")" * n + ";")
 
@@ -172,7 +180,8 @@ def _dims(n: int) -> str:  # dimensions are a list, not nesting
 
 CONSTRUCTS: dict[str, Callable[[int], str]] = {
     "if": _if, "elsif": _elsif, "case": _case, "case_long": _case_long, "for": _for,
-    "while": _while, "repeat": _repeat, "paren": _paren, "paren_sum": _paren_sum, "neg": _neg,
+    "while": _while, "repeat": _repeat, "paren": _paren, "paren_time": _paren_time,
+    "paren_neg_time": _paren_neg_time, "paren_sum": _paren_sum, "neg": _neg,
     "not": _not, "sum": _sum, "mixed_chain": _mixed_chain, "const_sum": _const_sum,
     "real_sum": _real_sum, "calls": _calls, "std_calls": _std_calls, "max_calls": _max_calls,
     "conversions": _conversions, "index": _index, "struct_fields": _struct_fields,
@@ -188,6 +197,7 @@ LEVELS_PER_STEP = {"paren_sum": 2, "conversions": 2, "struct_arrays": 2}
 # The largest n for which OpenPLC's iec2c accepts program(construct, n), measured by binary
 # search (n + 1 is a syntax error: its bison stack holds 200 entries). The checker must agree.
 MATIEC_MAX = {"if": 63, "case": 38, "for": 26, "while": 63, "repeat": 189, "paren": 189,
+              "paren_time": 184, "paren_neg_time": 183,
               "paren_sum": 63, "neg": 94, "not": 94, "calls": 94, "std_calls": 94,
               "max_calls": 47, "conversions": 47, "index": 94}
 

@@ -53,6 +53,20 @@ def test_deep_nesting_is_one_diagnostic(tmp_path: Path, construct: str, n: int) 
                         r"MatIEC \(\d+ nested .*", ds[0].render().rsplit("/", 1)[-1])
 
 
+@pytest.mark.parametrize(("construct", "literal"), [("paren_time", "T#1s"),
+                                                     ("paren_neg_time", "T#-1s")])
+def test_e0108_at_a_literal_too_long_for_its_place(tmp_path: Path, construct: str,
+                                                   literal: str) -> None:
+    """One parenthesis more than MATIEC_MAX still fits MatIEC's stack (a name would), the
+    literal inside it does not: the diagnostic is at the literal."""
+    src = program(construct, MATIEC_MAX[construct] + 1)
+    ds = check_files([write(tmp_path, construct, src)])
+    line = src[:src.index(literal)].count("\n") + 1
+    col = src.index(literal) - src.rindex("\n", 0, src.index(literal))
+    assert [(d.code, d.pos.line, d.pos.col) for d in ds] == [("E0108", line, col)], \
+        [d.render() for d in ds]
+
+
 def test_e0108_points_at_the_first_level_too_many(tmp_path: Path) -> None:
     # program(): line 1 is empty, PROGRAM .. END_VAR take lines 2..8, the first IF is line 9
     ds = check_files([write(tmp_path, "ifs", program("if", MATIEC_MAX["if"] + 5))])

@@ -27,8 +27,6 @@ declarations, POUs) are left-recursive in MatIEC's grammar: any length passes (5
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import tree_sitter as ts
 
 from .diagnostics import Diagnostics
@@ -67,150 +65,178 @@ _NAMES = {
 }
 
 
-@dataclass(slots=True)  # not frozen: one per syntax node, and a frozen init costs twice
-class _Frame:
-    node: ts.Node
-    stack: int  # symbols on MatIEC's stack when the node starts (its prefix included)
-    room: int  # symbols MatIEC leaves this statement or declaration
-    levels: int  # levels of syntax tree (the bench's guard)
-    parent: _Frame | None
+# What a construct keeps on MatIEC's stack while one of its parts is parsed: by node type, the
+# part's field -> (symbols, more symbols once a list of that part is on the stack, i.e. from
+# its second item), and the same pair for any other field. One table lookup per part: the
+# guard visits every node of every file, and a chain of tests per part cost 40 % of the
+# front end of st/.
+_Part = tuple[int, int]
+_PREFIXES: dict[str, tuple[dict[str, _Part], _Part]] = {
+    # IF e THEN stmt_list elseif_list (ELSIF ... | ELSE ...) END_IF
+    "if_statement": ({"condition": (1, 0), "consequence": (3, 1)}, (5, 0)),
+    "elsif_clause": ({"condition": (1, 0)}, (3, 1)),  # elseif_list ELSIF e THEN stmt_list
+    "else_clause": ({}, (1, 1)),  # ELSE stmt_list
+    # CASE e OF case_element_list ELSE ...
+    "case_statement": ({"subject": (1, 0), "case_clause": (3, 1)}, (4, 0)),
+    "case_clause": ({"case_value": (0, 2)}, (2, 1)),  # case_list ',' value ... ':' stmt_list
+    # FOR v := e TO e BY e DO stmt_list END_FOR (the body's place: _for_prefixes)
+    "for_statement": ({"control": (1, 0), "start": (3, 0), "end": (5, 0), "step": (7, 0)},
+                      (7, 1)),
+    "while_statement": ({"condition": (1, 0)}, (3, 1)),  # WHILE e DO stmt_list
+    "repeat_statement": ({"condition": (3, 0)}, (1, 1)),  # REPEAT stmt_list UNTIL e
+    # x := e, name := e, name => v
+    "assignment_statement": ({"right": (2, 0), "value": (2, 0)}, (0, 0)),
+    "named_argument": ({"right": (2, 0), "value": (2, 0)}, (0, 0)),
+    "structure_initializer_field": ({"right": (2, 0), "value": (2, 0)}, (0, 0)),
+    # DINT#-5 is DINT, '#' and -5; BOOL#1 is one token (the value's place: _typed_prefix)
+    "typed_literal": ({"value": (2, 0)}, (0, 0)),
+    # a op b, v . f, lo .. hi, T#v
+    **{t: ({"right": (2, 0), "member": (2, 0), "upper": (2, 0), "value": (2, 0)}, (0, 0))
+       for t in ("binary_expression", "member_access_expression", "subrange")},
+    "unary_expression": ({}, (1, 0)),
+    "parenthesized_expression": ({}, (1, 0)),
+    "call_expression": ({"arguments": (2, 0)}, (0, 0)),  # f '(' param_list ')'
+    "argument_list": ({}, (0, 2)),  # param_list ',' param (relative to the call's '(')
+    "index_expression": ({"object": (0, 0)}, (2, 2)),  # v '[' subscript_list ',' e ']'
+    "structure_initializer": ({}, (1, 2)),  # '(' field_init_list ',' field_init ')'
+    "variable_declaration": ({"names": (0, 0), "type": (2, 0)}, (4, 0)),  # names ':' type := v
+    **{t: ({}, (0, 0)) for t in _ZERO_PREFIX},
+}
+# anything else (declarations, types): more than any measured construct part
+_OTHER_PREFIX: tuple[dict[str, _Part], _Part] = ({}, (2, 0))
+# Symbols a construct holds when MatIEC reduces it (its own length in the grammar); 3 for
+# anything not named: a op b, ( e ), x := e, v . f, stmt ';' after stmt_list, ...
+_CLOSING = {
+    "if_statement": 6,  # IF e THEN stmt_list elseif_list END_IF (an ELSE counts in else_clause)
+    "else_clause": 3,  # ELSE stmt_list END_IF / END_CASE, after the IF's 5 or the CASE's 4
+    "for_statement": 9,  # 11 with BY (_for_prefixes)
+    "case_statement": 5, "while_statement": 5, "repeat_statement": 5,
+    "elsif_clause": 4, "call_expression": 4, "index_expression": 4, "variable_declaration": 4,
+    "unary_expression": 2,
+    "typed_literal": 3,  # 2 for BOOL#1 (_typed_prefix)
+    "argument_list": 1,  # its items; the call's own closing counts the parentheses
+}
+_ROOM_FOR_DECLARATIONS = _POUS | {"type_declaration", "configuration_declaration"}
+
+
+def _for_prefixes(node: ts.Node) -> tuple[dict[str, _Part], _Part, int]:
+    """A FOR's part table, default and closing: its body comes after BY e when it has one."""
+    if node.child_by_field_name("step") is None:
+        return (*_PREFIXES["for_statement"], 9)
+    return _PREFIXES["for_statement"][0], (9, 1), 11
+
+
+def _typed_prefix(node: ts.Node) -> tuple[dict[str, _Part], _Part, int]:
+    """A typed literal's part table, default and closing: BOOL#1 is one token, DINT#-5 three."""
+    type_node = node.child_by_field_name("type")
+    if type_node is not None and type_node.text is not None and \
+            type_node.text.upper() == b"BOOL":
+        return {"value": (1, 0)}, (0, 0), 2
+    return (*_PREFIXES["typed_literal"], 3)
+
+
+# The most symbols a token sequence without named children takes (_leaf: DT#... is 9,
+# TIME#-1s 9): a name or literal with more room than that left cannot be too deep, and is not
+# visited at all (more than half of a file's nodes).
+_MAX_LEAF = 9
 
 
 def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT) -> None:
-    """Report (once per file) the first construct nested too deep for MatIEC or the bench."""
-    work: list[_Frame] = [_Frame(c, 0, PARSER_STACK, 0, None)
-                          for c in reversed(pf.tree.root_node.children)]
+    """Report (once per file) the first construct nested too deep for MatIEC or the bench.
+
+    A depth-first walk in source order; each entry of the work list is a node, the symbols on
+    MatIEC's stack when it starts (its prefix included), the symbols MatIEC leaves its
+    statement or declaration, its levels of syntax tree (the bench's guard), its type and its
+    number of named children."""
+    names = _kind_names(pf.tree.language)
+    known = len(names)
+    work: list[tuple[ts.Node, int, int, int, str, int]] = [
+        (c, 0, PARSER_STACK, 0, _kind_name(names, c), c.named_child_count)
+        for c in reversed(pf.tree.root_node.named_children)]
+    prefixes, closings, transparent = _PREFIXES, _CLOSING, _TRANSPARENT
     while work:
-        f = work.pop()
-        node = f.node
-        peak = f.stack + (_leaf(node) if node.named_child_count == 0 else _closing(node))
-        if peak > f.room:
-            diags.error(pf.pos(node), "E0108", _matiec_message(f, peak))
+        node, stack, room, levels, t, count = work.pop()
+        if not count:  # a name or literal close to the limit
+            if stack + _leaf(node) > room:
+                diags.error(pf.pos(node), "E0108",
+                            _matiec_message(node, room, stack + _leaf(node)))
+                return
+            continue
+        if t == "for_statement":
+            parts, default, closing = _for_prefixes(node)
+        elif t == "typed_literal":
+            parts, default, closing = _typed_prefix(node)
+        else:
+            parts, default = prefixes.get(t, _OTHER_PREFIX)
+            closing = closings.get(t, 3)
+        if stack + closing > room:
+            diags.error(pf.pos(node), "E0108", _matiec_message(node, room, stack + closing))
             return
-        if f.levels > limit:
+        if levels > limit:
             diags.error(pf.pos(node), "E0108", f"nesting deeper than {limit} levels "
                         "(statements, parentheses, operators, calls, indices, field accesses; "
                         "a limit of the bench): move the inner part into a variable or a "
                         "FUNCTION")
             return
-        children: list[_Frame] = []
+        children: list[tuple[ts.Node, int, int, int, str, int]] = []
         seen: dict[str, int] = {}  # statements / list items already parsed, per field
-        for i, child in enumerate(node.children):
-            if not child.is_named:
-                continue
-            field = node.field_name_for_child(i) or (
-                "item" if node.type in _LISTS else child.type)
+        pou = t in _POUS
+        declarations = t in _ROOM_FOR_DECLARATIONS
+        items = t in _LISTS
+        binary = t == "binary_expression"
+        for i, child in enumerate(node.named_children):
+            kind = child.kind_id
+            ct = names[kind] if kind < known else child.type  # ERROR is 65535
+            field = node.field_name_for_named_child(i) or ("item" if items else ct)
             k = seen.get(field, 0)
-            if child.type not in _NOT_STATEMENTS:
+            if ct not in _NOT_STATEMENTS:
                 seen[field] = k + 1
-            room = f.room
-            if node.type in _POUS and field in _STATEMENT_FIELDS:
-                room = STATEMENT_ROOM[node.type]
-                start = 1 if k else 0  # statement_list on the stack from the 2nd statement
-            elif node.type in _POUS or node.type in ("type_declaration",
-                                                      "configuration_declaration"):
-                room, start = DECLARATION_ROOM, 0
+            if pou and field in _STATEMENT_FIELDS:
+                child_room, start = STATEMENT_ROOM[t], 1 if k else 0  # statement_list from the 2nd
+            elif declarations:
+                child_room, start = DECLARATION_ROOM, 0
             else:
-                start = f.stack + _prefix(node, field, k)
-            children.append(_Frame(child, start, room, f.levels + _levels(node, child), f))
+                base, later = parts.get(field, default)
+                child_room, start = room, stack + base + (later if k else 0)
+            grandchildren = child.named_child_count
+            if not grandchildren:
+                if start + _MAX_LEAF > child_room:
+                    children.append((child, start, child_room, levels, ct, 0))
+                continue
+            # the parts MatIEC has no level for, and the left operand of a binary operator
+            # (chains are flat), add no level
+            deeper = 0 if (ct in transparent or
+                           (binary and field == "left" and ct == "binary_expression")) else 1
+            children.append((child, start, child_room, levels + deeper, ct, grandchildren))
         work.extend(reversed(children))
     pf.guarded = True
 
 
-def _matiec_message(f: _Frame, peak: int) -> str:
+def _kind_names(language: ts.Language) -> list[str]:
+    """The node type names of ``language`` by kind id: one shared string each, where
+    Node.type makes a new one per call (a few hundred names: cheap to list per file)."""
+    return [language.node_kind_for_id(i) or "" for i in range(language.node_kind_count)]
+
+
+def _kind_name(names: list[str], node: ts.Node) -> str:
+    kind = node.kind_id
+    return names[kind] if kind < len(names) else node.type  # ERROR is 65535
+
+
+def _matiec_message(node: ts.Node, room: int, peak: int) -> str:
     counts: dict[str, int] = {}
-    up: _Frame | None = f
+    up: ts.Node | None = node
     while up is not None:
-        name = _NAMES.get(up.node.type)
+        name = _NAMES.get(up.type)
         if name is not None:
             counts[name] = counts.get(name, 0) + 1
         up = up.parent
     ranked = sorted(counts.items(), key=lambda kv: -kv[1])
     what = ", ".join(f"{n} nested {name}" for name, n in ranked)
     return (f"nesting too deep for MatIEC ({what or 'nested constructs'}): its parser needs "
-            f"{peak} of the {f.room} stack entries left here and OpenPLC's build stops with a "
+            f"{peak} of the {room} stack entries left here and OpenPLC's build stops with a "
             f"syntax error (e.g. at most 63 nested IFs or {MAX_PARENTHESES} nested "
             "parentheses): move the inner part into a variable or a FUNCTION")
-
-
-def _levels(parent: ts.Node, child: ts.Node) -> int:
-    if child.type in _TRANSPARENT or child.named_child_count == 0:  # names, literals
-        return 0
-    if child.type == "binary_expression" and parent.type == "binary_expression" and \
-            parent.child_by_field_name("left") == child:
-        return 0
-    return 1
-
-
-def _prefix(parent: ts.Node, field: str, k: int) -> int:
-    """Symbols `parent` holds on MatIEC's stack while its k-th part named `field` is parsed
-    (k counts earlier parts of the same field: a list on the stack from the second item)."""
-    later = 1 if k else 0
-    t = parent.type
-    if t == "if_statement":  # IF e THEN stmt_list elseif_list (ELSIF ... | ELSE ...) END_IF
-        return {"condition": 1, "consequence": 3 + later}.get(field, 5)
-    if t == "elsif_clause":  # elseif_list ELSIF e THEN stmt_list
-        return 1 if field == "condition" else 3 + later
-    if t == "else_clause":  # ELSE stmt_list
-        return 1 + later
-    if t == "case_statement":  # CASE e OF case_element_list ELSE ...
-        return {"subject": 1, "case_clause": 3 + later}.get(field, 4)
-    if t == "case_clause":  # case_list ',' value ... ':' stmt_list
-        return 2 * later if field == "case_value" else 2 + later
-    if t == "for_statement":  # FOR v := e TO e BY e DO stmt_list END_FOR
-        has_step = parent.child_by_field_name("step") is not None
-        return {"control": 1, "start": 3, "end": 5, "step": 7}.get(
-            field, (9 if has_step else 7) + later)
-    if t == "while_statement":  # WHILE e DO stmt_list
-        return 1 if field == "condition" else 3 + later
-    if t == "repeat_statement":  # REPEAT stmt_list UNTIL e
-        return 3 if field == "condition" else 1 + later
-    if t in ("assignment_statement", "named_argument", "structure_initializer_field"):
-        return 2 if field in ("right", "value") else 0  # x := e, name := e, name => v
-    if t == "typed_literal":  # DINT#-5 is DINT, '#' and -5; BOOL#1 is one token
-        type_node = parent.child_by_field_name("type")
-        is_bool = type_node is not None and type_node.text is not None and \
-            type_node.text.upper() == b"BOOL"
-        return 0 if field != "value" else 1 if is_bool else 2
-    if t in ("binary_expression", "member_access_expression", "subrange"):
-        return 2 if field in ("right", "member", "upper", "value") else 0  # a op b, T#v
-    if t in ("unary_expression", "parenthesized_expression"):
-        return 1
-    if t == "call_expression":  # f '(' param_list ')'
-        return 2 if field == "arguments" else 0
-    if t == "argument_list":  # param_list ',' param (relative to the call's '(')
-        return 2 * later
-    if t == "index_expression":  # v '[' subscript_list ',' e ']'
-        return 0 if field == "object" else 2 + 2 * later
-    if t == "structure_initializer":  # '(' field_init_list ',' field_init ')'
-        return 1 + 2 * later
-    if t == "variable_declaration":  # names ':' type ':=' initial value
-        return {"names": 0, "type": 2}.get(field, 4)
-    if t in _ZERO_PREFIX:
-        return 0
-    return 2  # anything else (declarations, types): more than any measured construct part
-
-
-def _closing(node: ts.Node) -> int:
-    """Symbols a construct holds when MatIEC reduces it (its own length in the grammar)."""
-    t = node.type
-    if t == "if_statement":
-        return 6  # IF e THEN stmt_list elseif_list END_IF (an ELSE counts in else_clause)
-    if t == "else_clause":
-        return 3  # ELSE stmt_list END_IF / END_CASE, after the IF's 5 or the CASE's 4
-    if t == "for_statement":
-        return 11 if node.child_by_field_name("step") is not None else 9
-    if t in ("case_statement", "while_statement", "repeat_statement"):
-        return 5
-    if t in ("elsif_clause", "call_expression", "index_expression", "variable_declaration"):
-        return 4
-    if t == "unary_expression":
-        return 2
-    if t == "typed_literal":  # BOOL#1 is one token
-        return 2 if _prefix(node, "value", 0) == 1 else 3
-    if t == "argument_list":
-        return 1  # its items; the call's own closing counts the parentheses
-    return 3  # a op b, ( e ), x := e, v . f, stmt ';' after stmt_list, ...
 
 
 # leaves whose count depends on their text; statements that are one token and its ';' (2)
