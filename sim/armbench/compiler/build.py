@@ -22,10 +22,13 @@ from .atomic import write_atomic
 from .emit_c import CUnit
 
 RUNTIME_DIR = Path(__file__).parent / "runtime"
-# -O1 with -O2's inlining of small functions: the generated code (scans, the jerk planner, the
-# IK kernel of bench/compiler_bench.py) runs within a few per cent of -O2, and gcc compiles it
-# in 55 % of -O2's time; without that inlining, -O1 code ran up to 19 % slower.
-CFLAGS = ["-O1", "-finline-small-functions", "-fPIC", "-shared", "-fwrapv",
+# -Og with -O2's inlining of small functions. -Og leaves out the -O1 passes that cost gcc most
+# (points-to analysis, scalar replacement of aggregates, dead store elimination, ...): gcc
+# compiles st/ in about 70 % of the CPU time of -O1 with the same inlining, -O1 in 55 % of -O2's.
+# Measured interleaved in one run (bench/startup.py has the build figures): the IK kernel of
+# bench/compiler_bench.py within 1 %, a 6-joint jerk-limited plan 11-13 % slower (a few
+# microseconds, under 0.2 % of a 10 ms scan); without that inlining, code ran up to 45 % slower.
+CFLAGS = ["-Og", "-finline-small-functions", "-fPIC", "-shared", "-fwrapv",
           "-fno-strict-aliasing", "-std=gnu11", "-w"]
 # POU code per translation unit below which another compiler process costs more (its start,
 # the shared declarations parsed again) than it saves

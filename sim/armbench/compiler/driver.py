@@ -65,7 +65,7 @@ def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
     diags = Diagnostics()
     cache = UnitCache() if unit_cache is None else unit_cache
     files = expand(paths)
-    fronts = [cache.front(path) for path in files]
+    fronts = cache.fronts(files)
     for front in fronts:
         diags.extend(front.syntax)
     if diags.has_errors:

@@ -14,7 +14,7 @@ import gc
 import hashlib
 import pickle
 import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +23,7 @@ from . import ast as A
 from .atomic import write_atomic
 from .build import cache_dir
 from .diagnostics import Diagnostic, Diagnostics
+from .front_split import compute_all
 from .frontend import check_syntax, drop_syntax_cascades, parse_source
 from .lower import lower
 from .source import SourcePos
@@ -79,6 +80,13 @@ def compiler_version() -> bytes:
     return h.digest()
 
 
+@dataclass(frozen=True)
+class _Pickled:
+    """An entry's value already pickled (by the process that computed it)."""
+
+    blob: bytes
+
+
 class UnitCache:
     """Per-file front-end results and declared names, pickled under ``folder``.
 
@@ -119,12 +127,15 @@ class UnitCache:
             return None
         return value if isinstance(value, want) else None
 
-    def put(self, kind: str, path: Path, data: bytes, value: object) -> None:
+    def put(self, kind: str, path: Path, data: bytes, value: object,
+            pickled: bytes | None = None) -> None:
+        """Store ``value`` (``pickled``: its bytes, when already pickled)."""
         target = self._key(kind, path, data)
+        entry = value if pickled is None else _Pickled(pickled)
         if self._deferred:
-            self._pending.append((target, value))
+            self._pending.append((target, entry))
         else:
-            self._write(target, value)
+            self._write(target, entry)
 
     def flush(self) -> None:
         """Write the entries ``put`` deferred."""
@@ -135,9 +146,34 @@ class UnitCache:
     def _write(self, target: Path, value: object) -> None:
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
-            write_atomic(target, pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+            blob = value.blob if isinstance(value, _Pickled) else pickle.dumps(
+                value, protocol=pickle.HIGHEST_PROTOCOL)
+            write_atomic(target, blob)
         except (OSError, pickle.PicklingError, RecursionError):
             pass  # not cached: the next run does the work again
+
+    def fronts(self, paths: Sequence[Path]) -> list[FileFront]:
+        """Each file through the front end, in order: from the cache, else computed, the
+        files missing from the cache shared with a second process where that pays
+        (front_split.py)."""
+        out: list[FileFront | None] = []
+        missing: list[tuple[int, Path, bytes]] = []
+        for path in paths:
+            try:
+                data = self.read(path)
+            except OSError:
+                out.append(self.front(path))  # says it cannot be read
+                continue
+            hit = self.get("front", path, data, FileFront)
+            out.append(hit if isinstance(hit, FileFront) else None)
+            if hit is None:
+                missing.append((len(out) - 1, path, data))
+        computed = compute_all([(path, data) for _, path, data in missing], front_end,
+                               FileFront)
+        for (i, path, data), result in zip(missing, computed, strict=True):
+            out[i] = result.value
+            self.put("front", path, data, result.value, result.pickled)
+        return [front for front in out if front is not None]
 
     def front(self, path: Path, data: bytes | None = None) -> FileFront:
         """The file through the front end (``data``: its bytes when already read)."""
