@@ -3,14 +3,16 @@
 1. `armbench check small.st` (a small program using one library function), cached caches;
 2. `armbench run small.st --cycles 100`, cached build;
 3. the library checked alone (st/*.st), in-process, cached caches;
-4. a cold build of st/ (empty cache folder), in-process: front end, check, C, the C compiler
-   (as many translation units at once as there are usable CPUs, build.plan_units) and cffi's
-   declarations module;
+4. a cold build of st/ (empty cache folder), in-process: front end (on Linux shared with a
+   forked child, front_split.py), check, C, the C compiler (as many translation units at once
+   as there are usable CPUs, build.plan_units) and cffi's declarations module;
 5. a cached build of st/, in-process: the cache of compilations (compiler/programs.py) loads
    the checked program, the declarations module and the library, and nothing else runs.
 
 Each line gives the best wall time of R runs and the CPU time (user+sys, the C compiler
 included) of that run: the machine may be shared, and CPU time says what load cannot.
+Machines differ by a factor of three here, so the first lines time two fixed workloads, a
+Python loop and gcc on a fixed C file: compare figures of different machines through them.
 An installed package has its bytecode compiled; with PYTHONDONTWRITEBYTECODE set every
 `armbench` start compiles the modules it imports again (the header line says which).
 Goals: check/run <= 0.5 s, cached build of st/ <= 0.2 s, cold build of st/ <= 2 s.
@@ -82,6 +84,27 @@ def cli(*args: str) -> Callable[[], object]:
     return run
 
 
+def python_reference() -> None:
+    total = 0
+    for i in range(5_000_000):
+        total += i
+
+
+def gcc_reference(folder: Path) -> Callable[[], object]:
+    """gcc -O1 of 400 small C functions (a fixed file, not the library's C)."""
+    from armbench.compiler.build import find_cc
+
+    src = folder / "reference.c"
+    src.write_text("".join(f"double f{k}(double x, int n) {{ double s = x; "
+                           f"for (int i = 0; i < n; i++) s = s * 0.5 + i * {k}.0; "
+                           f"return s > {k} ? s : -s; }}\n" for k in range(400)))
+
+    def run() -> None:
+        subprocess.run([find_cc(), "-O1", "-c", str(src), "-o", str(folder / "reference.o")],
+                       check=True)
+    return run
+
+
 def line(what: str, fig: Figure, goal: float | None) -> None:
     goal_text = "" if goal is None else f" (goal <= {goal:g} s)"
     print(f"{what:<48} wall {fig.wall:6.3f} s  cpu {fig.cpu:6.3f} s{goal_text}", flush=True)
@@ -102,6 +125,9 @@ def main(repeat: int) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "cache"
         os.environ["ARMBENCH_CACHE"] = str(cache)
+        line("reference: a Python loop (5e6 additions)", best(python_reference, repeat), None)
+        line("reference: gcc -O1 of a fixed C file", best(gcc_reference(Path(tmp)), repeat),
+             None)
         small = Path(tmp) / "small.st"
         small.write_text(SMALL)
         cli("run", str(small))()  # fills the caches

@@ -13,6 +13,8 @@ import textwrap
 import threading
 from pathlib import Path
 
+import pytest
+
 from armbench.compiler import front_split
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -109,23 +111,20 @@ def test_a_child_that_dies_costs_nothing_but_time(tmp_path: Path) -> None:
     assert out["ok"], out
 
 
-def test_what_the_child_sends_is_checked(tmp_path: Path) -> None:
-    out = run_script(toy("""
-        def work(path, data):
-            if os.getpid() != PARENT:
-                return "not a Result"  # read back, refused, computed again here
-            return Result(path.name, len(data))
-        report(front_split.compute_all(jobs, work, Result))
-    """), tmp_path)
-    assert out == {"ok": True, "by_child": 0}
+# what the child does instead of its work: nothing of it reaches the results
+_CHILD_FAULTS = {
+    "sends what is not a result": 'return "not a Result"',
+    "raises": 'raise ValueError("the child\'s")',
+}
 
 
-def test_an_exception_in_the_child_is_not_seen(tmp_path: Path) -> None:
-    out = run_script(toy("""
+@pytest.mark.parametrize("fault", sorted(_CHILD_FAULTS))
+def test_what_the_child_sends_is_checked(tmp_path: Path, fault: str) -> None:
+    out = run_script(toy(f"""
         import time
         def work(path, data):
             if os.getpid() != PARENT:
-                raise ValueError("the child's")
+                {_CHILD_FAULTS[fault]}
             time.sleep(0.005)
             return Result(path.name, len(data))
         report(front_split.compute_all(jobs, work, Result))

@@ -297,6 +297,34 @@ def test_multi_scan_protocol(st_module: Any) -> None:
     assert ik.Joints == answer and not ik.Converged
 
 
+@pytest.mark.parametrize("per_scan", [1, 2, 3, 1000])
+def test_the_last_iteration_allowed_is_checked(st_module: Any, per_scan: int) -> None:
+    """A solve that converges on its MaxIters-th iteration is Done, however the scans cut
+    its iterations: the convergence of the last iteration of a scan is checked in that scan
+    (before, a cap falling on a scan's last iteration reported 9 without checking)."""
+    case = puma_case(0.8)
+    ik = st_module.new_fb("InverseKinematik_Chain")
+    solve(ik, Chain=case.chain, Target=case.target, Seed=case.seed)
+    assert ik.Done, ik.ErrorId
+    needed, answer = ik.Iterations, ik.Joints
+    assert needed > 3
+    ik(Execute=False)
+    ik(Execute=True, Chain=case.chain, Target=case.target, Seed=case.seed,
+       ItersPerScan=per_scan, MaxIters=needed)
+    scans = 1
+    while ik.Busy:
+        ik(Execute=True)
+        scans += 1
+        assert scans <= needed
+    assert ik.Done and ik.Converged and not ik.Error, (ik.ErrorId, ik.Iterations)
+    assert ik.Iterations == needed and ik.Joints == answer
+    assert scans == -(-needed // min(per_scan, needed))  # Done in the scan of the last one
+    reached = case.robot.fkine(joints_rtb(case.robot, ik.Joints, MM_PER_M)).A
+    wanted = case.robot.fkine(case.qt).A
+    assert float(np.linalg.norm(reached[:3, 3] - wanted[:3, 3]) * MM_PER_M) <= RESIDUAL_MM
+    assert rotation_angle_deg(reached[:3, :3], wanted[:3, :3]) <= RESIDUAL_DEG
+
+
 def _assert_kept(ik: Any, answer: list[float]) -> None:
     assert ik.Error and not ik.Done and not ik.Busy
     assert ik.Joints == answer
