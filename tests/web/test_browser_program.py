@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page, Route
-from webview_helpers import COUNTER, get, serve_program, wait_for
+from playwright.sync_api import APIResponse, Browser, Page, Route
+from webview_helpers import COUNTER, get, post, serve_program, wait_for
 
 from armbench.web.app import WebView
 from armbench.web.variables import program_variables
@@ -149,3 +149,49 @@ def test_two_boxes_ticked_before_the_first_answer_both_count(page: Page) -> None
     page.wait_for_timeout(300)  # a late answer would land here
     assert page.evaluate("window.armbench.trace.names") == ["Scans", "Wave"]
     assert page.is_checked("#trace-vars input[value=Scans]")
+
+
+def test_a_sample_answer_from_before_a_new_selection_is_dropped(page: Page,
+                                                               counter_view: WebView) -> None:
+    """A poll that the server answered under the previous selection and that arrives after the
+    page took the new one is stale: it must not bring the old selection back (it did, until
+    the next poll, and a test waiting for samples could see the old variables)."""
+    status, answer = post(counter_view, {"variables": ["Scans"]}, path="api/trace")
+    assert status == 200 and answer["ok"], answer
+    page.click("#views button[data-view=trace]")
+    page.wait_for_function("window.armbench.trace.names.join() === 'Scans'")
+    stale: list[tuple[Route, APIResponse]] = []
+    later: list[Route] = []
+    released: list[bool] = []
+
+    def polls(url: str) -> bool:
+        return "/api/trace?" in url
+
+    def hold(route: Route) -> None:
+        if released:
+            route.continue_()
+        elif not stale:
+            stale.append((route, route.fetch()))  # answered now, under the one-variable trace
+        else:
+            later.append(route)  # the polls after it wait until the end
+
+    page.route(polls, hold)
+    for _ in range(500):  # Playwright calls the handler while the page waits, not in a sleep
+        if stale:
+            break
+        page.wait_for_timeout(20)
+    assert stale, "no poll for samples in 10 s"
+    page.check("#trace-vars input[value=Wave]")
+    page.wait_for_function("window.armbench.trace.names.length === 2")
+    route, answer = stale[0]
+    route.fulfill(response=answer)
+    page.wait_for_timeout(300)  # the stale answer is handled; the next poll waits in `later`
+    try:
+        assert page.evaluate("window.armbench.trace.names") == ["Scans", "Wave"]
+        assert page.is_checked("#trace-vars input[value=Scans]")
+        assert page.is_checked("#trace-vars input[value=Wave]")
+    finally:
+        released.append(True)
+        for r in later:
+            r.continue_()
+        page.unroute(polls)

@@ -72,6 +72,9 @@ window.armbenchTrace = function (info) {
     try {
       const r = await fetch(`/api/trace?since=${T.lastSeq}&config=${T.config}`);
       const a = await r.json();
+      // configurations only count up: an older one is an answer the server gave before the
+      // page took a newer selection (its POST answered first), and its samples are stale
+      if (a.config < T.config) { setTimeout(poll, 0); return; }
       if (a.config !== T.config) adopt(a);
       const into = T.paused ? T.held : T.rows;
       for (const s of a.samples) {
