@@ -132,6 +132,23 @@ def test_what_the_child_sends_is_checked(tmp_path: Path, fault: str) -> None:
     assert out == {"ok": True, "by_child": 0}
 
 
+def test_a_child_that_hangs_is_not_waited_for(tmp_path: Path) -> None:
+    out = run_script(toy("""
+        import time
+        front_split.STALL_S = 0.5
+        def work(path, data):
+            if os.getpid() != PARENT and path.name == "f35.st":
+                time.sleep(3600)  # stuck after it sent f39 .. f36
+            time.sleep(0.01)
+            return Result(path.name, len(data))
+        began = time.monotonic()
+        results = front_split.compute_all(jobs, work, Result)
+        assert time.monotonic() - began < 30
+        report(results)
+    """), tmp_path)
+    assert out["ok"], out
+
+
 def test_the_work_is_shared(tmp_path: Path) -> None:
     out = run_script(toy("""
         import time

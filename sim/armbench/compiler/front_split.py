@@ -36,6 +36,9 @@ T = TypeVar("T")
 MIN_SPLIT_BYTES = 100_000
 _STARTED, _RESULT = 0, 1
 _HEADER = struct.Struct("<BiQ")  # kind, file index, payload length
+# A child that says nothing for this long is taken as stuck: this process computes what it
+# has not sent (a file can take longer than this only by being far larger than st/'s largest).
+STALL_S = 10.0
 
 
 @dataclass
@@ -96,9 +99,10 @@ def _child(jobs: Sequence[tuple[Path, bytes]], work: Callable[[Path, bytes], T],
 
 
 def _send(fd: int, what: int, index: int, payload: bytes) -> None:
-    data = memoryview(_HEADER.pack(what, index, len(payload)) + payload)
-    while data:
-        data = data[os.write(fd, data):]
+    for part in (_HEADER.pack(what, index, len(payload)), payload):
+        data = memoryview(part)
+        while data:
+            data = data[os.write(fd, data):]
 
 
 @dataclass
@@ -108,6 +112,7 @@ class _Inbox:
     lowest_started: int
     results: dict[int, bytes] = field(default_factory=dict)
     ended: bool = False
+    said: int = 0  # messages so far
     changed: threading.Condition = field(default_factory=threading.Condition)
 
 
@@ -126,6 +131,7 @@ def _read(fd: int, inbox: _Inbox) -> None:
                     inbox.lowest_started = min(inbox.lowest_started, index)
                 else:
                     inbox.results[index] = payload
+                inbox.said += 1
                 inbox.changed.notify_all()
     with inbox.changed:
         inbox.ended = True
@@ -146,8 +152,12 @@ def _parent(jobs: Sequence[tuple[Path, bytes]], work: Callable[[Path, bytes], T]
             out[mine] = Computed(work(*jobs[mine]))
             mine += 1
         with inbox.changed:  # the rest were started by the child: wait for them
-            inbox.changed.wait_for(
-                lambda: inbox.ended or all(i in inbox.results for i in range(mine, n)))
+            heard = -1
+            while not inbox.ended and any(i not in inbox.results for i in range(mine, n)):
+                if inbox.said == heard:
+                    break  # nothing new for STALL_S
+                heard = inbox.said
+                inbox.changed.wait(STALL_S)
             results = dict(inbox.results)
     finally:
         _end(pid)

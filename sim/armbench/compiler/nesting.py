@@ -105,15 +105,14 @@ _PREFIXES: dict[str, tuple[dict[str, _Part], _Part]] = {
 # anything else (declarations, types): more than any measured construct part
 _OTHER_PREFIX: tuple[dict[str, _Part], _Part] = ({}, (2, 0))
 # Symbols a construct holds when MatIEC reduces it (its own length in the grammar); 3 for
-# anything not named: a op b, ( e ), x := e, v . f, stmt ';' after stmt_list, ...
+# anything not named: a op b, ( e ), x := e, v . f, stmt ';' after stmt_list, ... (FOR and
+# typed literals depend on their parts: _for_prefixes, _typed_prefix)
 _CLOSING = {
     "if_statement": 6,  # IF e THEN stmt_list elseif_list END_IF (an ELSE counts in else_clause)
     "else_clause": 3,  # ELSE stmt_list END_IF / END_CASE, after the IF's 5 or the CASE's 4
-    "for_statement": 9,  # 11 with BY (_for_prefixes)
     "case_statement": 5, "while_statement": 5, "repeat_statement": 5,
     "elsif_clause": 4, "call_expression": 4, "index_expression": 4, "variable_declaration": 4,
     "unary_expression": 2,
-    "typed_literal": 3,  # 2 for BOOL#1 (_typed_prefix)
     "argument_list": 1,  # its items; the call's own closing counts the parentheses
 }
 _ROOM_FOR_DECLARATIONS = _POUS | {"type_declaration", "configuration_declaration"}
@@ -149,17 +148,16 @@ def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT
     statement or declaration, its levels of syntax tree (the bench's guard), its type and its
     number of named children."""
     names = _kind_names(pf.tree.language)
-    known = len(names)
     work: list[tuple[ts.Node, int, int, int, str, int]] = [
-        (c, 0, PARSER_STACK, 0, _kind_name(names, c), c.named_child_count)
+        (c, 0, PARSER_STACK, 0, names.get(c.kind_id) or c.type, c.named_child_count)
         for c in reversed(pf.tree.root_node.named_children)]
     prefixes, closings, transparent = _PREFIXES, _CLOSING, _TRANSPARENT
     while work:
         node, stack, room, levels, t, count = work.pop()
         if not count:  # a name or literal close to the limit
-            if stack + _leaf(node) > room:
-                diags.error(pf.pos(node), "E0108",
-                            _matiec_message(node, room, stack + _leaf(node)))
+            peak = stack + _leaf(node)
+            if peak > room:
+                diags.error(pf.pos(node), "E0108", _matiec_message(node, room, peak))
                 return
             continue
         if t == "for_statement":
@@ -185,8 +183,7 @@ def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT
         items = t in _LISTS
         binary = t == "binary_expression"
         for i, child in enumerate(node.named_children):
-            kind = child.kind_id
-            ct = names[kind] if kind < known else child.type  # ERROR is 65535
+            ct = names.get(child.kind_id) or child.type
             field = node.field_name_for_named_child(i) or ("item" if items else ct)
             k = seen.get(field, 0)
             if ct not in _NOT_STATEMENTS:
@@ -212,15 +209,11 @@ def check_nesting(pf: ParsedFile, diags: Diagnostics, limit: int = NESTING_LIMIT
     pf.guarded = True
 
 
-def _kind_names(language: ts.Language) -> list[str]:
+def _kind_names(language: ts.Language) -> dict[int, str]:
     """The node type names of ``language`` by kind id: one shared string each, where
-    Node.type makes a new one per call (a few hundred names: cheap to list per file)."""
-    return [language.node_kind_for_id(i) or "" for i in range(language.node_kind_count)]
-
-
-def _kind_name(names: list[str], node: ts.Node) -> str:
-    kind = node.kind_id
-    return names[kind] if kind < len(names) else node.type  # ERROR is 65535
+    Node.type makes a new one per call (a few hundred names: cheap to list per file; ERROR,
+    65535, is not among them)."""
+    return {i: language.node_kind_for_id(i) or "" for i in range(language.node_kind_count)}
 
 
 def _matiec_message(node: ts.Node, room: int, peak: int) -> str:
