@@ -22,6 +22,7 @@ from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .compiler import ast as A
 from .compiler.ast import Literal
 from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
@@ -309,14 +310,37 @@ def _constants(inst: InstanceModel) -> dict[str, int]:
     return _pou_constants(inst.pou)
 
 
+def _root_name(e: A.Expr) -> str | None:
+    while isinstance(e, (A.Member, A.Index)):
+        e = e.obj
+    return e.name.upper() if isinstance(e, A.Name) else None
+
+
+def _written(pou: A.Pou) -> set[str]:
+    """Variables the POU's body may change: assignment targets and anything it passes to a
+    call by name (an output, or an in-out the callee may write)."""
+    names: set[str] = set()
+    for node in A.walk(pou.body):
+        target = node.target if isinstance(node, A.Assign) else \
+            node.value if isinstance(node, A.Arg) else None
+        root = _root_name(target) if target is not None else None
+        if root is not None:
+            names.add(root)
+    return names
+
+
 def _pou_constants(pou: PouSym) -> dict[str, int]:
+    """Integer constants, and the fields of the code STRUCTs (error codes, registers) the POU
+    reads: declared as plain VARs without an initialiser (STruC++ takes no STRUCT constant
+    without an initialiser, and none takes a STRUCT initialiser everywhere), their values
+    are the type's field defaults as long as the POU never writes them."""
     out: dict[str, int] = {}
+    written = _written(pou.node) if pou.node is not None else set()
     for var in pou.vars.values():
-        if not var.constant:
-            continue
-        if isinstance(var.init, Literal) and var.init.kind == "int":
+        if var.constant and isinstance(var.init, Literal) and var.init.kind == "int":
             out[var.name] = int(var.init.value)
-        elif isinstance(var.type, StructType):
+        elif isinstance(var.type, StructType) and var.init is None and (
+                var.constant or (var.kind == A.VAR and var.key not in written)):
             for key, (spelling, _) in var.type.fields.items():
                 init = var.type.inits.get(key)
                 if isinstance(init, Literal) and init.kind == "int":
