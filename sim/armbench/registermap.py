@@ -175,8 +175,8 @@ def _registers(prog: CheckedProgram, inst: InstanceModel, flavor: Flavor) -> lis
 @dataclass(frozen=True)
 class _Placer:
     """Where the located variables of one POU (or of the CONFIGURATION) are on a flavor's
-    server: ``flavor.name`` "openplc", OpenPLC's map of the declared address; "codesys", the
-    CODESYS variant's place, keyed by (POU, name) upper case."""
+    server: OpenPLC's map of the declared address (``flavor.layout`` "openplc": OpenPLC v3
+    and v4), or the CODESYS variant's place, keyed by (POU, name) upper case."""
 
     flavor: Flavor
     pou: str | None  # None: the CONFIGURATION's globals
@@ -200,7 +200,7 @@ def _placements(prog: CheckedProgram, flavor: Flavor
                 ) -> dict[tuple[str, str], Placed] | None:
     """The CODESYS variant's placement of every located variable for ``flavor`` codesys
     (None for openplc: the declared addresses are the map)."""
-    if flavor == mm.OPENPLC:
+    if flavor.openplc_map:  # OpenPLC v3, and v4 set up to keep v3's map
         return None
     from .export.codesys import layout
 

@@ -368,7 +368,7 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
     # registers, which no function code writes)
     before, word = plc.gripper(), plc.channel_words()[5]
     first = plc.registers["GRIPPERCALZERODEG"]
-    if plc.flavor.name == "openplc":
+    if plc.flavor.openplc_map:
         with PlcClient(*plc_address) as raw:
             raw.write_registers(first.address, first.flavor.encode("REAL", math.nan) * 12)
     else:
