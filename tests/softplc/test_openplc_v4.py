@@ -201,6 +201,27 @@ def test_an_overflowing_journal_drops_the_tail_of_a_write() -> None:
     assert list(d.image.qw[0:6]) == [1, 2, 3, 4, 0, 0] and d.dropped == 2
 
 
+def test_register_writes_journal_under_the_image_lock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The plugin takes the image lock (which every drain holds) before a register write's
+    first journal entry and releases it after its last; coil writes take no lock."""
+    d = _device()
+    held: list[tuple[int, bool]] = []
+    append = d._append
+
+    def spy(entries):  # type: ignore[no-untyped-def]
+        entries = list(entries)
+        held.extend((e.offset, d.lock.locked()) for e in entries)
+        append(entries)
+
+    monkeypatch.setattr(d, "_append", spy)
+    _request(d, struct.pack(">BHHB24H", 16, 2046, 24, 48, *range(24)))  # %MW + %MD
+    _request(d, struct.pack(">BHH", 6, 100, 7))
+    assert len(held) == 2 + 11 + 1 and all(locked for _, locked in held)
+    held.clear()
+    _request(d, struct.pack(">BHHB", 15, 0, 8, 1) + b"\xff")
+    assert len(held) == 8 and not any(locked for _, locked in held)
+
+
 def test_function_16_reaches_a_drain_whole() -> None:
     """Register writes take the image lock over all of their journal entries, so a drain (a
     scan's copy-in) sees all of one or none: blocks of 12 equal DINTs written while another
