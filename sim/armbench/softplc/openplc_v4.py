@@ -19,7 +19,7 @@ Sizing (``image_tables.cpp``, ``image_sizes.py``, ``simple_modbus.py``):
   program must set to keep v3's addresses).
 - An address outside the segments answers exception 02 (v3 answered zeros below 8192).
 
-Timing (``journal_buffer.c``, ``mutex_manager.py``, the task loop of ``plc_state_manager.cpp``):
+Timing (``journal_buffer.c``, ``mutex_manager.py``, the task worker's scan in ``core/src/plc_app``):
 
 - A client's write is not applied to the image: it is queued in the journal (one entry per
   register of %QW/%MW, per 32/64-bit value of %MD/%ML, per coil), and the journal is drained by
