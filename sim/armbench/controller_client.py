@@ -1416,8 +1416,17 @@ class MotionRecorder:
 
     def record_until_idle(self, client: ArmControllerClient, ticket: MotionTicket | None = None,
                           timeout_s: float = 30.0) -> tuple[MotionOutcome, MotionRecording]:
-        """While recording: wait for ``client``'s motion to end, then a few more scans (so
-        the standstill is in the record), and stop."""
+        """While recording: wait for ``client``'s motion to end, then until this recorder
+        holds a sample 5 scans after the end (so the standstill is in the record, however
+        slowly a loaded machine lets it sample: waiting for 5 scans on ``client`` left the
+        last sample before the end, under load against the real v3 runtime), and stop."""
         outcome = client.wait_motion(ticket, timeout_s=timeout_s)
-        client.wait_scans(5)
+        end = outcome.sample.scan
+        deadline = time.monotonic() + timeout_s
+        while not (self._samples  # the last sample 5 or more scans after the end (mod 2^32)
+                   and 5 <= (self._samples[-1].scan - end) & 0xFFFFFFFF < 0x80000000):
+            if self._thread is None or not self._thread.is_alive() \
+                    or time.monotonic() > deadline:
+                break  # stop() reports a broken recorder; a record without it is judged so
+            time.sleep(0.005)
         return outcome, self.stop()
