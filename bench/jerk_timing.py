@@ -7,10 +7,12 @@ What is timed, in one C++ process that reads one case file:
   st/ plus one small timing FB (TIMING_ST, below), with build.CFLAGS and split into
   translation units as on this machine (as pytest and the soft PLC get st/; from the build
   cache when it is there), loaded with dlopen; with `--variant NAME=FLAGS` also the same C
-  built with FLAGS added (e.g. `O2=-O2`), each a library of its own in the same process. The
-  timing FB plans --reps times per call of the library, so the library's entry (a setjmp and
-  the watchdog's clock read, what the soft PLC pays once per scan) is paid once per --reps
-  plans (its cost, a trivial FUNCTION's `_run`, is printed as "entry");
+  built with FLAGS added (e.g. `O2=-O2`), and with `--baseline TREE` the same ST compiled by
+  another checkout's armbench (before and after a compiler change), each a library of its
+  own in the same process. The timing FB plans --reps times per call of the library, so the
+  library's entry (a setjmp and the watchdog's clock read, what the soft PLC pays once per
+  scan) is paid once per --reps plans (its cost, a trivial FUNCTION's `_run`, is printed as
+  "entry");
 - Ruckig 0.19.4's C++ (`Ruckig<DynamicDOFs>::calculate`, the PyPI sdist's sources, built
   here at -O2 with -DNDEBUG, cached), linked into the harness, --reps calculations in a C++
   loop.
@@ -31,8 +33,8 @@ plus the evaluation) and the median scan that only evaluates, as a fraction of 1
 The machine is shared: figures are what this run measured, noisy at the 10 % level.
 
 Run: .venv/bin/python bench/jerk_timing.py [--cases 2000] [--reps 100] [--rounds 5]
-[--variant O2=-O2] [--ruckig-src DIR] (PYTHONPATH=sim from a worktree). Without --ruckig-src
-the sdist of the installed ruckig version is fetched with pip into
+[--variant O2=-O2] [--baseline TREE] [--ruckig-src DIR] (PYTHONPATH=sim from a worktree).
+Without --ruckig-src the sdist of the installed ruckig version is fetched with pip into
 ~/.cache/armbench/ruckig-src. JERK_TIMING_PLANS_ONLY=1 in the environment of the built
 harness leaves the generator out (for a profiler).
 """
@@ -41,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import os
 import random
 import shlex
 import statistics
@@ -242,12 +245,15 @@ int main(int argc, char **argv) {
         for (int i = 0; i < k; i++) { volatile double x = now_s(); (void)x; }
         double clock_us = (now_s() - t0) / k * 1e6;
         std::printf("K clock %.9g\n", 2.0 * clock_us / reps);
-        for (int l = 0; l < nlib; l++) {
-            FN_DEGTORAD tiny; libs[l].tiny_init(&tiny); tiny.ANGLEDEG = 1.0f;
-            t0 = now_s();
-            for (int i = 0; i < k; i++) libs[l].tiny_run(&tiny);
-            std::printf("K entry%d %.9g\n", l, (now_s() - t0) / k * 1e6);
-        }
+        std::vector<double> entry(nlib, 1e300);
+        for (int round = 0; round < 5; round++)
+            for (int l = 0; l < nlib; l++) {
+                FN_DEGTORAD tiny; libs[l].tiny_init(&tiny); tiny.ANGLEDEG = 1.0f;
+                t0 = now_s();
+                for (int i = 0; i < k / 5; i++) libs[l].tiny_run(&tiny);
+                entry[l] = std::min(entry[l], (now_s() - t0) / (k / 5) * 1e6);
+            }
+        for (int l = 0; l < nlib; l++) std::printf("K entry%d %.9g\n", l, entry[l]);
     }
     Case c;
     std::vector<double> best(nlib + 1);
@@ -366,6 +372,25 @@ def ruckig_objects(src: Path) -> list[str]:
     return objs
 
 
+BASELINE = """
+import sys
+from pathlib import Path
+from armbench.compiler.build import build
+from armbench.compiler.driver import emit_files
+_, unit = emit_files([Path(p) for p in sys.argv[1:]])
+print(build(unit).path)
+"""
+
+
+def baseline_library(tree: Path, files: list[Path]) -> Path:
+    """The library another checkout's armbench builds of ``files`` (only the FB structs the
+    harness touches must be laid out alike: the emitted C of FUNCTIONs may differ)."""
+    out = subprocess.run([sys.executable, "-c", BASELINE, *map(str, files)],
+                         env={**os.environ, "PYTHONPATH": str(tree / "sim")},
+                         capture_output=True, text=True, check=True).stdout
+    return Path(out.strip().splitlines()[-1])
+
+
 def parse(out: str, nlib: int) -> tuple[list[list[tuple[int, float, float]]],
                                         dict[str, float], dict[int, tuple[float, float]]]:
     """Per case: (code, duration, µs) of each ST library, then Ruckig's; the "K" figures;
@@ -395,6 +420,9 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--variant", action="append", default=[], metavar="NAME=FLAGS",
                     help="also time the bench's build with FLAGS added (repeatable)")
+    ap.add_argument("--baseline", type=Path, action="append", default=[], metavar="TREE",
+                    help="also time the same ST compiled by the armbench of another checkout "
+                         "(its sim/: e.g. a worktree of an older commit), repeatable")
     ap.add_argument("--ruckig-src", type=Path, help="an unpacked ruckig source tree")
     opts = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="armbench_jerk_timing_"))
@@ -406,6 +434,7 @@ def main() -> int:
         name, _, flags = v.partition("=")
         variants.append((f"ST {name}", tuple(shlex.split(flags))))
     libs = []
+    names_extra: list[str] = []
     for name, extra_flags in variants:
         t0 = time.perf_counter()
         lib = build(unit, extra_flags=extra_flags)
@@ -414,6 +443,13 @@ def main() -> int:
         print(f"{name}: st/ + the timing FB with {' '.join([*CFLAGS, *extra_flags])} "
               f"({how}): {lib.path}")
         libs.append(lib.path)
+    for tree in opts.baseline:
+        t0 = time.perf_counter()
+        path = baseline_library(tree, [*files, work / "jerk_timing_loop.st"])
+        print(f"ST {tree.name}: the same ST by {tree}'s armbench "
+              f"({time.perf_counter() - t0:.1f} s wall): {path}")
+        names_extra.append(f"ST {tree.name}")
+        libs.append(path)
     (work / "st_decls.h").write_text(unit.decls)
     (work / "harness.cpp").write_text(HARNESS)
     src = ruckig_sources(opts.ruckig_src)
@@ -422,7 +458,7 @@ def main() -> int:
     subprocess.run(["g++", *RUCKIG_FLAGS, f"-I{src / 'include'}", f"-I{work}",
                     str(work / "harness.cpp"), *objs, "-ldl", "-o", str(work / "bench")],
                    check=True)
-    names = [n for n, _ in variants] + ["Ruckig C++"]
+    names = [n for n, _ in variants] + names_extra + ["Ruckig C++"]
     ok = True
     print()
     print("| cases | n | implementation | µs mean | median | p99 | mean / Ruckig's | "
