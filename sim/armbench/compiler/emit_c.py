@@ -124,6 +124,8 @@ class Emitter:
         self.std_code: list[str] = []
         self.pieces: list[str] = []
         self.fn_params: dict[str, FnParams] = {}
+        # the FOR variables whose values are known in the loop being emitted (fixed_for)
+        self.for_ranges: dict[VarSym, tuple[int, int]] = {}
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -355,7 +357,7 @@ class Emitter:
         temps: list[str] = []
         for v in sym.vars.values():
             if v.kind == A.VAR_TEMP:
-                temps.append(f"memset(&self->{v.key}, 0, sizeof self->{v.key});")
+                temps.append(f"PLC__ZERO(self->{v.key});")
                 self.init_value(f"self->{v.key}", v.type, v.init, temps)
         body = ("    int plc__brk_ = 0;\n    (void)plc__brk_;\n" +
                 "".join(f"    {t}\n" for t in temps) + self.block(sym.node.body, 1))
@@ -394,14 +396,14 @@ class Emitter:
                 params.append(f"const {ct} *a_{v.key}")
                 run_args.append(f"&self->{v.key}")
                 if v.key in fp.copied:
-                    prologue.append(f"{ct} l_{v.key} = *a_{v.key};")
+                    prologue.append(f"{ct} l_{v.key}; PLC__COPY(l_{v.key}, *a_{v.key});")
             elif v.kind == A.VAR_IN_OUT:
                 params.append(f"{ct} *a_{v.key}")
                 run_args.append(f"self->{v.key}")
             else:  # VAR_OUTPUT: the caller's, from its initial value on
                 params.append(f"{ct} *a_{v.key}")
                 run_args.append(f"&self->{v.key}")
-                outputs.append(f"memset(a_{v.key}, 0, sizeof *a_{v.key});")
+                outputs.append(f"PLC__ZERO(*a_{v.key});")
                 self.init_value(f"(*a_{v.key})", v.type, v.init, outputs)
         # inputs are copied before anything is written: the caller may pass a pointer to
         # what the result or an output will be written to (fn_call)
@@ -419,7 +421,7 @@ class Emitter:
             params.append(f"{rt} *plc__ret")
             run_args.append("&self->ret_")
             if fp.result_init and not fp.result_local:
-                prologue.append("memset(plc__ret, 0, sizeof *plc__ret);")
+                prologue.append("PLC__ZERO(*plc__ret);")
                 self.init_value("(*plc__ret)", sym.return_type, None, prologue)
             run_call = f"{cname}_fn({', '.join(run_args)});"
             epilogue = ""
@@ -428,7 +430,7 @@ class Emitter:
                 continue
             if v.key == fp.result_local:
                 if v.key not in fp.no_init:
-                    init_ret = ["memset(plc__ret, 0, sizeof *plc__ret);"]
+                    init_ret = ["PLC__ZERO(*plc__ret);"]
                     self.init_value("(*plc__ret)", v.type, v.init, init_ret)
                     prologue += init_ret
             elif v.key in fp.no_init:
@@ -446,6 +448,17 @@ class Emitter:
             f"    if (setjmp(plc__jmp)) return 1;\n    plc__wd_begin();\n"
             f"    {run_call}\n    return 0;\n}}\n")
 
+    def assign_c(self, lhs: str, value: A.Expr, t: Type) -> str:
+        """`lhs := value` as a C statement (see copy_c)."""
+        if not is_scalar(t) and isinstance(value, A.Name | A.Member | A.Index):
+            return self.copy_c(lhs, self.expr(value, want=t), t)
+        return f"{lhs} = {self.expr(value, want=t)};"
+
+    def copy_c(self, lhs: str, rhs: str, t: Type) -> str:
+        """An assignment of the C lvalue rhs to lhs: a large STRUCT or array through the
+        runtime's PLC__COPY (the C library's memmove)."""
+        return f"{lhs} = {rhs};" if is_scalar(t) else f"PLC__COPY({lhs}, {rhs});"
+
     def declare(self, name: str, t: Type, init: A.Init | None) -> str:
         """A C local ``name`` of type t with its initial value (statements)."""
         out: list[str] = []
@@ -453,7 +466,7 @@ class Emitter:
         ct = self.ctype(t)
         if is_scalar(t):
             return " ".join([f"{ct} {name} = 0;", *out])
-        return " ".join([f"{ct} {name};", f"memset(&{name}, 0, sizeof {name});", *out])
+        return " ".join([f"{ct} {name};", f"PLC__ZERO({name});", *out])
 
     def params_of(self, sym: PouSym) -> FnParams:
         """How FUNCTION sym takes its STRUCT inputs (FnParams), from what its body writes."""
@@ -647,6 +660,86 @@ class Emitter:
             "    return 0;\n}\n#endif\n")
 
     # ================================================================ statements
+    def fixed_for(self, s: A.For) -> tuple[int, int, int] | None:
+        """(lowest, highest value of the variable, iterations) of a FOR loop with literal
+        bounds and step whose variable, a plain local, nothing in the loop can change, and
+        that ends without the variable wrapping around; at most 65536 iterations."""
+        ref = self.p.names.get(s.var)
+        vt = self.p.expr_types.get(s.var)
+        if ref is None or ref.kind != "var" or ref.var is None or \
+                not isinstance(vt, ElemType) or vt.kind not in ("sint", "uint"):
+            return None
+        v = ref.var
+        if v.kind not in (A.VAR, A.VAR_TEMP) or v.address or v.constant:
+            return None
+        start, end = literal_int(s.start), literal_int(s.end)
+        step = 1 if s.step is None else literal_int(s.step)
+        if start is None or end is None or step is None:
+            return None
+        tlo, thi = vt.int_range()
+        if step == 0 or not (tlo <= end + step <= thi) or not tlo <= start <= thi:
+            return None
+        trip = max(0, (end - start) // step + 1)
+        if trip > 65536 or self.writes_var(s.body, v):
+            return None
+        # an FB called in the loop may write through a VAR_IN_OUT bound at an earlier call
+        if not self.in_function() and self.cur is not None and self.cur.node is not None \
+                and self.inout_bound(self.cur.node.body, v):
+            return None
+        last = start + (trip - 1) * step
+        return min(start, last), max(start, last), trip
+
+    def writes_var(self, body: list[A.Stmt], v: VarSym) -> bool:
+        """Does something in body assign v, loop over it, or pass it as a VAR_IN_OUT or an
+        output target?"""
+        for node in A.walk(body):
+            if isinstance(node, A.Assign) and self.root_var(node.target) is v:
+                return True
+            if isinstance(node, A.For) and self.root_var(node.var) is v:
+                return True
+            if isinstance(node, A.Call):
+                tgt = self.p.calls.get(node)
+                if tgt is None or tgt.pou is None:
+                    continue
+                if any(self.root_var(e) is v for _, e in tgt.outputs):
+                    return True
+                if self.inout_bound([node], v):
+                    return True
+        return False
+
+    def inout_bound(self, body: list[A.Stmt] | list[A.Call], v: VarSym) -> bool:
+        for node in A.walk(body):
+            if isinstance(node, A.Call):
+                tgt = self.p.calls.get(node)
+                if tgt is not None and tgt.pou is not None and any(
+                        tgt.pou.vars[key].kind == A.VAR_IN_OUT and self.root_var(e) is v
+                        for key, e in tgt.inputs):
+                    return True
+        return False
+
+    def root_var(self, e: A.Expr) -> VarSym | None:
+        while isinstance(e, A.Member | A.Index):
+            e = e.obj
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        return ref.var if ref is not None and ref.kind == "var" else None
+
+    def known_range(self, e: A.Expr) -> tuple[int, int] | None:
+        """The values an index expression can take, where the emitter knows them: a FOR
+        variable of fixed_for, plus or minus an integer literal."""
+        if isinstance(e, A.Name):
+            ref = self.p.names.get(e)
+            return self.for_ranges.get(ref.var) if ref is not None and ref.kind == "var" \
+                and ref.var is not None else None
+        if isinstance(e, A.Binary) and e.op in ("+", "-"):
+            for a, b, sign in ((e.left, e.right, 1), (e.right, e.left, 1)):
+                if e.op == "-" and a is e.right:
+                    continue
+                r = self.known_range(a)
+                if r is not None and isinstance(b, A.Literal) and b.kind == "int":
+                    k = int(b.value) * (-1 if e.op == "-" else sign)
+                    return r[0] + k, r[1] + k
+        return None
+
     def block(self, body: list[A.Stmt], depth: int) -> str:
         out: list[str] = []
         for s in body:
@@ -669,7 +762,7 @@ class Emitter:
                 call = self.p.calls[s.value]
                 if call.kind == "function" and self.may_target(s.target, call):
                     return f"{ind}{self.fn_call(s.value, dest=s.target)};\n"
-            return f"{ind}{self.lvalue(s.target)} = {self.expr(s.value, want=tt)};\n"
+            return f"{ind}{self.assign_c(self.lvalue(s.target), s.value, tt)}\n"
         if isinstance(s, A.CallStmt):
             return self.fb_call(s.call, ind)
         if isinstance(s, A.If):
@@ -711,11 +804,24 @@ class Emitter:
             step = self.expr(s.step, want=vt) if s.step is not None else "1"
             end = self.expr(s.end, want=vt)
             stp = self.loc.tmp()
-            return (f"{ind}for ({v} = {self.expr(s.start, want=vt)}; ; ) {{\n"
+            fixed = self.fixed_for(s)
+            before, each = "", f"{ind}    PLC__WD({self.pos(s)});\n"
+            var = self.p.names[s.var].var
+            if fixed is not None and var is not None:
+                # a known number of iterations: counted once for the watchdog, and the
+                # variable's range known inside (indices need no bounds check)
+                before, each = f"{ind}PLC__WD_N({self.pos(s)}, {fixed[2]});\n", ""
+                self.for_ranges[var] = (fixed[0], fixed[1])
+            try:
+                inner = self.block(s.body, depth + 2)
+            finally:
+                if var is not None:
+                    self.for_ranges.pop(var, None)
+            return (f"{before}{ind}for ({v} = {self.expr(s.start, want=vt)}; ; ) {{\n"
                     f"{ind}    {ct} {stp} = {step};\n"
                     f"{ind}    if ({stp} >= 0 ? !({v} <= {end}) : !({v} >= {end})) break;\n"
-                    f"{ind}    PLC__WD({self.pos(s)});\n"
-                    f"{ind}    do {{\n{self.block(s.body, depth + 2)}{ind}    }} while (0);\n"
+                    f"{each}"
+                    f"{ind}    do {{\n{inner}{ind}    }} while (0);\n"
                     f"{ind}    if (plc__brk_) {{ plc__brk_ = 0; break; }}\n"
                     f"{ind}    {v} = ({ct})({v} + {stp});\n{ind}}}\n")
         if isinstance(s, A.While):
@@ -753,10 +859,10 @@ class Emitter:
             if v.kind == A.VAR_IN_OUT:
                 out += f"{ind}    {inst}.{key} = &{self.lvalue(e)};\n"
             else:
-                out += f"{ind}    {inst}.{key} = {self.expr(e, want=v.type)};\n"
+                out += f"{ind}    {self.assign_c(f'{inst}.{key}', e, v.type)}\n"
         out += f"{ind}    {cname}_body(&{inst});\n"
         for key, e in tgt.outputs:
-            out += f"{ind}    {self.lvalue(e)} = {inst}.{key};\n"
+            out += f"{ind}    {self.copy_c(self.lvalue(e), f'{inst}.{key}', sym.vars[key].type)}\n"
         return out + f"{ind}}}\n"
 
     def fn_call(self, c: A.Call, dest: A.Expr | None = None) -> str:
@@ -793,7 +899,7 @@ class Emitter:
                 parts.append(f"const {ct} *{t} = &{self.lvalue(e)};")
                 passed[key] = t
             else:
-                parts.append(f"{ct} {t} = {self.expr(e, want=v.type)};")
+                parts.append(f"{ct} {t}; {self.assign_c(t, e, v.type)}")
                 passed[key] = f"&{t}"
         args: list[str] = []
         outs: dict[str, str] = {}
@@ -813,7 +919,8 @@ class Emitter:
             else:  # an input not given: its initial value
                 parts.append(self.declare(t, v.type, v.init))
                 args.append(t if is_scalar(v.type) else f"&{t}")
-        after = [f"{self.lvalue(e)} = {outs[key]};" for key, e in tgt.outputs]
+        after = [self.copy_c(self.lvalue(e), outs[key], sym.vars[key].type)
+                 for key, e in tgt.outputs]
         if is_scalar(sym.return_type):
             call = f"{cname}_fn({', '.join(args)})"
             if not after:
@@ -922,8 +1029,11 @@ class Emitter:
             stride = at.size
             for ie, (lo, hi) in zip(e.indices, at.dims, strict=True):
                 stride //= hi - lo + 1
+                known = self.known_range(ie)
                 if isinstance(ie, A.Literal) and ie.kind == "int":
                     term = str(int(ie.value) - lo)
+                elif known is not None and lo <= known[0] and known[1] <= hi:
+                    term = f"((int32_t){self.expr(ie)} - {lo})"
                 else:
                     term = f"plc__idx({self.expr(ie)}, {lo}, {hi}, {self.pos(ie)})"
                 terms.append(term if stride == 1 else f"{term} * {stride}")
@@ -1165,6 +1275,16 @@ class Emitter:
                 return f"(({ct})plc__{name.lower()}32((uint32_t){x}, (int32_t){n}, {t.bits}))"
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def literal_int(e: A.Expr) -> int | None:
+    """The value of an integer literal, negated or not; None for anything else."""
+    if isinstance(e, A.Unary) and e.op == "-":
+        v = literal_int(e.operand)
+        return None if v is None else -v
+    if isinstance(e, A.Literal) and e.kind == "int" and not isinstance(e.value, bool):
+        return int(e.value)
+    return None
 
 
 def may_alias(a: tuple[object, str] | None, b: tuple[object, str] | None) -> bool:
