@@ -53,6 +53,10 @@ void plc_set_watchdog(int64_t ns);
 
 # links of a binary chain per C temporary (see Emitter.binary)
 SPILL_EVERY = 100
+# counted FOR loops (Emitter.fixed_for) of at most UNROLL_TRIPS iterations and UNROLL_NODES
+# AST nodes written out are emitted iteration by iteration (Emitter.unrolled_for)
+UNROLL_TRIPS = 8
+UNROLL_NODES = 1200
 # what a FUNCTION's frame struct holds (its other variables are locals of its C function)
 FN_FRAME_KINDS = (A.VAR_INPUT, A.VAR_IN_OUT, A.VAR_OUTPUT)
 
@@ -126,6 +130,13 @@ class Emitter:
         self.fn_params: dict[str, FnParams] = {}
         # the FOR variables whose values are known in the loop being emitted (fixed_for)
         self.for_ranges: dict[VarSym, tuple[int, int]] = {}
+        self.inout_bound_memo: dict[str, set[VarSym]] = {}
+        self.cur_fp: FnParams | None = None  # params_of(cur) while a FUNCTION is emitted
+        self.fixed_memo: dict[int, tuple[int, int, int] | None] = {}
+        self.unroll_memo: dict[int, int] = {}  # FOR node -> nodes in its body
+        self.unroll_scale = 1  # iterations of the loops being written out, multiplied
+        # expression node -> does evaluating it call a FUNCTION that writes the caller's
+        self.writes_memo: dict[int, bool] = {}
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -340,8 +351,11 @@ class Emitter:
             f"{self.static_init(v.type, v.init)};\n"
             for v in sym.vars.values() if is_shared_constant(v))
         if sym.kind == "FUNCTION":
-            self.function_code(sym, consts)
-            self.cur = None
+            self.cur_fp = self.params_of(sym)
+            try:
+                self.function_code(sym, consts)
+            finally:
+                self.cur = self.cur_fp = None
             return
         init: list[str] = ["memset(self, 0, sizeof *self);"]
         for v in sym.vars.values():
@@ -475,7 +489,8 @@ class Emitter:
             return fp
         assert sym.node is not None
         written: set[str] = set()
-        for node in A.walk(sym.node.body):
+        body_nodes = nodes(sym.node.body)
+        for node in body_nodes:
             if isinstance(node, A.Assign):
                 written.add(self.root_key(node.target))
             elif isinstance(node, A.For):
@@ -496,18 +511,18 @@ class Emitter:
                 (fp.copied if v.key in written else fp.by_pointer).add(v.key)
         assert sym.return_type is not None
         if not is_scalar(sym.return_type):
-            self.result_analysis(sym, fp)
+            self.result_analysis(sym, fp, body_nodes)
         self.first_writes(sym, fp)
         self.fn_params[sym.key] = fp
         return fp
 
-    def result_analysis(self, sym: PouSym, fp: FnParams) -> None:
+    def result_analysis(self, sym: PouSym, fp: FnParams, body_nodes: list[A.Node]) -> None:
         """FnParams.result_local and result_init of a FUNCTION with an aggregate result."""
         assert sym.node is not None
         body = sym.node.body
         whole: list[A.Assign] = []  # `F := ...`
         refs = 0  # every use of F
-        for node in A.walk(body):
+        for node in body_nodes:
             if isinstance(node, A.Name) and self.is_result(node):
                 refs += 1
             elif isinstance(node, A.Assign) and self.is_result(node.target):
@@ -544,7 +559,7 @@ class Emitter:
         for st in sym.node.body:
             if not isinstance(st, A.Assign):
                 break
-            read = {self.local_key(n) for n in A.walk(st.value) if isinstance(n, A.Name)}
+            read = {self.local_key(n) for n in nodes(st.value) if isinstance(n, A.Name)}
             seen |= read
             key = self.local_key(st.target)
             v = sym.vars.get(key)
@@ -660,10 +675,54 @@ class Emitter:
             "    return 0;\n}\n#endif\n")
 
     # ================================================================ statements
+    def unrollable(self, s: A.For, trip: int) -> bool:
+        """A counted loop (fixed_for) small enough to be written out iteration by
+        iteration, with no EXIT or CONTINUE in it: its body, times its iterations and those
+        of the loops written out around it, at most UNROLL_NODES nodes."""
+        if trip > UNROLL_TRIPS:
+            return False
+        if id(s) not in self.unroll_memo:
+            body = nodes(s.body)
+            has_exit = any(isinstance(node, A.Exit | A.Continue) for node in body)
+            self.unroll_memo[id(s)] = UNROLL_NODES + 1 if has_exit else len(body)
+        return self.unroll_memo[id(s)] * trip * self.unroll_scale <= UNROLL_NODES
+
+    def unrolled_for(self, s: A.For, var: VarSym, trip: int, ind: str, depth: int) -> str:
+        """A small counted loop written out: the variable set to each value in turn before
+        its copy of the body (indices by it are constant offsets then, and the C compiler
+        keeps values from one iteration to the next in registers), then to the value the
+        loop leaves it at."""
+        vt = self.p.expr_types[s.var]
+        assert isinstance(vt, ElemType)
+        v = self.lvalue(s.var)
+        ct = self.ctype(vt)
+        start = literal_int(s.start)
+        step = 1 if s.step is None else literal_int(s.step)
+        assert start is not None and step is not None
+        out = [f"{ind}PLC__WD_N({self.pos(s)}, {trip});\n"] if trip else []
+        scale = self.unroll_scale
+        self.unroll_scale *= max(trip, 1)
+        try:
+            for k in range(trip):
+                value = start + k * step
+                self.for_ranges[var] = (value, value)
+                out.append(f"{ind}{v} = ({ct}){value};\n{ind}{{\n"
+                           f"{self.block(s.body, depth + 1)}{ind}}}\n")
+        finally:
+            self.for_ranges.pop(var, None)
+            self.unroll_scale = scale
+        out.append(f"{ind}{v} = ({ct}){start + trip * step};\n")
+        return "".join(out)
+
     def fixed_for(self, s: A.For) -> tuple[int, int, int] | None:
         """(lowest, highest value of the variable, iterations) of a FOR loop with literal
         bounds and step whose variable, a plain local, nothing in the loop can change, and
         that ends without the variable wrapping around; at most 65536 iterations."""
+        if id(s) not in self.fixed_memo:  # an unrolled loop emits the loops in it again
+            self.fixed_memo[id(s)] = self.find_fixed_for(s)
+        return self.fixed_memo[id(s)]
+
+    def find_fixed_for(self, s: A.For) -> tuple[int, int, int] | None:
         ref = self.p.names.get(s.var)
         vt = self.p.expr_types.get(s.var)
         if ref is None or ref.kind != "var" or ref.var is None or \
@@ -683,8 +742,7 @@ class Emitter:
         if trip > 65536 or self.writes_var(s.body, v):
             return None
         # an FB called in the loop may write through a VAR_IN_OUT bound at an earlier call
-        if not self.in_function() and self.cur is not None and self.cur.node is not None \
-                and self.inout_bound(self.cur.node.body, v):
+        if not self.in_function() and v in self.inout_bound_vars():
             return None
         last = start + (trip - 1) * step
         return min(start, last), max(start, last), trip
@@ -692,7 +750,7 @@ class Emitter:
     def writes_var(self, body: list[A.Stmt], v: VarSym) -> bool:
         """Does something in body assign v, loop over it, or pass it as a VAR_IN_OUT or an
         output target?"""
-        for node in A.walk(body):
+        for node in nodes(body):
             if isinstance(node, A.Assign) and self.root_var(node.target) is v:
                 return True
             if isinstance(node, A.For) and self.root_var(node.var) is v:
@@ -701,21 +759,28 @@ class Emitter:
                 tgt = self.p.calls.get(node)
                 if tgt is None or tgt.pou is None:
                     continue
-                if any(self.root_var(e) is v for _, e in tgt.outputs):
-                    return True
-                if self.inout_bound([node], v):
-                    return True
-        return False
-
-    def inout_bound(self, body: list[A.Stmt] | list[A.Call], v: VarSym) -> bool:
-        for node in A.walk(body):
-            if isinstance(node, A.Call):
-                tgt = self.p.calls.get(node)
-                if tgt is not None and tgt.pou is not None and any(
+                if any(self.root_var(e) is v for _, e in tgt.outputs) or any(
                         tgt.pou.vars[key].kind == A.VAR_IN_OUT and self.root_var(e) is v
                         for key, e in tgt.inputs):
                     return True
         return False
+
+    def inout_bound_vars(self) -> set[VarSym]:
+        """The variables of the current POU passed as a VAR_IN_OUT somewhere in its body."""
+        assert self.cur is not None and self.cur.node is not None
+        found = self.inout_bound_memo.get(self.cur.key)
+        if found is None:
+            found = set()
+            for node in nodes(self.cur.node.body):
+                if isinstance(node, A.Call):
+                    tgt = self.p.calls.get(node)
+                    if tgt is not None and tgt.pou is not None:
+                        for key, e in tgt.inputs:
+                            v = self.root_var(e)
+                            if v is not None and tgt.pou.vars[key].kind == A.VAR_IN_OUT:
+                                found.add(v)
+            self.inout_bound_memo[self.cur.key] = found
+        return found
 
     def root_var(self, e: A.Expr) -> VarSym | None:
         while isinstance(e, A.Member | A.Index):
@@ -807,6 +872,8 @@ class Emitter:
             fixed = self.fixed_for(s)
             before, each = "", f"{ind}    PLC__WD({self.pos(s)});\n"
             var = self.p.names[s.var].var
+            if fixed is not None and var is not None and self.unrollable(s, fixed[2]):
+                return self.unrolled_for(s, var, fixed[2], ind, depth)
             if fixed is not None and var is not None:
                 # a known number of iterations: counted once for the watchdog, and the
                 # variable's range known inside (indices need no bounds check)
@@ -939,14 +1006,32 @@ class Emitter:
         return "({ " + " ".join([*parts, *after, f"{r};"]) + " })"
 
     def writes_caller(self, e: A.Expr) -> bool:
-        """Does evaluating e call a FUNCTION that writes through a VAR_IN_OUT or VAR_OUTPUT?"""
-        for node in A.walk(e):
+        """Does evaluating e call a FUNCTION that writes through a VAR_IN_OUT or VAR_OUTPUT?
+        Every node below e gets its answer at once (children first, with a stack), so that
+        nested calls cost linear time."""
+        memo = self.writes_memo
+        if id(e) in memo:
+            return memo[id(e)]
+        order: list[A.Node] = []
+        stack: list[object] = [e]
+        while stack:
+            cur = stack.pop()
+            if isinstance(cur, A.Node):
+                if id(cur) in memo:
+                    continue
+                order.append(cur)
+                stack.extend(cur.__dict__.values())
+            elif isinstance(cur, list | tuple):
+                stack.extend(cur)
+        for node in reversed(order):  # every node after the nodes below it
+            own = False
             if isinstance(node, A.Call):
                 tgt = self.p.calls.get(node)
-                if tgt is not None and tgt.kind == "function" and tgt.pou is not None and \
-                        self.params_of(tgt.pou).writes_caller:
-                    return True
-        return False
+                own = tgt is not None and tgt.kind == "function" and tgt.pou is not None \
+                    and self.params_of(tgt.pou).writes_caller
+            memo[id(node)] = own or any(memo.get(id(child), False)
+                                        for child in children(node))
+        return memo[id(e)]
 
     def may_point(self, e: A.Expr, read_only: bool,
                   inout_roots: list[tuple[object, str] | None]) -> bool:
@@ -990,16 +1075,16 @@ class Emitter:
         if is_shared_constant(v):
             assert self.cur is not None
             return const_name(self.pou_cname(self.cur), v)
-        if self.in_function():
-            assert self.cur is not None
+        fp = self.cur_fp
+        if fp is not None:
             if v.kind == A.VAR_INPUT:
                 if is_scalar(v.type):
                     return f"a_{v.key}"
-                if v.key in self.params_of(self.cur).by_pointer:
+                if v.key in fp.by_pointer:
                     return f"(*a_{v.key})"
             elif v.kind in (A.VAR_IN_OUT, A.VAR_OUTPUT):
                 return f"(*a_{v.key})"
-            elif v.kind == A.VAR and v.key == self.params_of(self.cur).result_local:
+            elif v.kind == A.VAR and v.key == fp.result_local:
                 return "(*plc__ret)"
             return f"l_{v.key}"
         if v.kind == A.VAR_IN_OUT or v.address:
@@ -1275,6 +1360,33 @@ class Emitter:
                 return f"(({ct})plc__{name.lower()}32((uint32_t){x}, (int32_t){n}, {t.bits}))"
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def nodes(obj: object) -> list[A.Node]:
+    """Every AST node in obj (a node or a list of them), with a stack: A.walk, faster (no
+    dataclass field lists) and the nodes only."""
+    out: list[A.Node] = []
+    stack: list[object] = [obj]
+    node_t, seq_t = A.Node, (list, tuple)
+    while stack:
+        cur = stack.pop()
+        if isinstance(cur, node_t):
+            out.append(cur)
+            stack.extend(cur.__dict__.values())
+        elif isinstance(cur, seq_t):
+            stack.extend(cur)
+    return out
+
+
+def children(node: A.Node) -> Iterator[A.Node]:
+    """The AST nodes directly below node (inside its fields, lists and tuples included)."""
+    stack: list[object] = list(node.__dict__.values())
+    while stack:
+        cur = stack.pop()
+        if isinstance(cur, A.Node):
+            yield cur
+        elif isinstance(cur, list | tuple):
+            stack.extend(cur)
 
 
 def literal_int(e: A.Expr) -> int | None:
