@@ -192,3 +192,20 @@ def test_the_readmes_excerpts_are_the_example_files() -> None:
                                             "examples/my_program/test_tank.py"}
     for name, text in fences:
         assert text in (ROOT / name).read_text(encoding="utf-8"), name
+
+
+def test_the_readme_shows_the_whole_configuration() -> None:
+    """A program runs only under a CONFIGURATION (Config0, Res0, a periodic TASK, the PROGRAM
+    instance WITH it): the README's own-program section shows tank.st's, whole, so a reader
+    who copies the excerpts has a program every command runs."""
+    import re
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Testing your own program with pytest", 1)[1].split("\n## ", 1)[0]
+    shown = re.findall(r"^```st examples/my_program/tank.st\n(.*?)^```\s*$", section, re.S | re.M)
+    tank = (EXAMPLE / "tank.st").read_text(encoding="utf-8")
+    config = re.search(r"^CONFIGURATION .*?^END_CONFIGURATION\n", tank, re.S | re.M)
+    assert config is not None
+    assert config.group(0) in shown
+    assert re.search(r"TASK \w+\(INTERVAL := T#\w+", config.group(0))
+    assert re.search(r"PROGRAM \w+ WITH \w+ : TankControl;", config.group(0))

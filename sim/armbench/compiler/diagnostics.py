@@ -28,6 +28,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0108": ("nesting too deep", "MatIEC's parser stack overflows (e.g. beyond 63 nested IFs "
               "or 189 nested parentheses; see Limits below): move inner parts into variables or "
               "FUNCTIONs (long flat chains like a + b + c are fine)"),
+    "E0109": ("CONFIGURATION out of form",
+              "write CONFIGURATION Config0 / RESOURCE Res0 ON PLC / TASK MainTask(INTERVAL := "
+              "T#10ms, PRIORITY := 0); / PROGRAM Inst WITH MainTask : Main; / END_RESOURCE / "
+              "END_CONFIGURATION (Main: your PROGRAM; TASKs before the PROGRAM instances)"),
     "E0200": ("undeclared name", "declare the variable, type or POU"),
     "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
     "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
