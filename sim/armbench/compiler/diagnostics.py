@@ -112,7 +112,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
-    "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
+    "E0602": ("configuration layout", "one RESOURCE, a periodic TASK, each PROGRAM instance "
+              "WITH a TASK; the names Config0 and Res0 for OpenPLC's upload (an error for "
+              "--target openplc and all, a warning for codesys and for build, run and serve: "
+              "see Targets below)"),
     "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
     "N0001": ("file is not UTF-8: read as Windows-1252 (cp1252); a note, not an error",
               "nothing if the accented characters show right; else save the file as UTF-8"),

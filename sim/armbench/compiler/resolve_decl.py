@@ -6,7 +6,7 @@ holds the tables these methods fill.
 from __future__ import annotations
 
 from . import ast as A
-from .config_syntax import instance_form, task_form
+from .config_syntax import configuration_form, instance_form, task_form
 from .diagnostics import Diagnostics
 from .emit_c import split_address
 from .symbols import ConfigModel, InstanceModel, PouSym, TaskModel, VarSym
@@ -229,17 +229,13 @@ class Declarations:
 
     # ================================================================ configuration
     def configuration(self, c: A.Configuration) -> ConfigModel | None:
-        if c.name.upper() != "CONFIG0":
-            self.d.error(c.pos, "E0602", f"CONFIGURATION '{c.name}': OpenPLC's upload needs "
-                         "it to be named Config0")
+        # the names OpenPLC's upload needs (Config0, Res0) depend on the target: dialects.py
         if len(c.resources) != 1:
-            self.d.error(c.pos, "E0602", "OpenPLC needs exactly one RESOURCE (Res0)")
+            self.d.error(c.pos, "E0602", "the bench and OpenPLC run exactly one RESOURCE: "
+                         f"`{configuration_form()}`")
             if not c.resources:
                 return None
         res = c.resources[0]
-        if res.name.upper() != "RES0":
-            self.d.error(res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
-                         "upload needs it to be named Res0")
         for blk in c.globals + res.globals:
             self.check_block_mix(blk)
             for decl in blk.decls:

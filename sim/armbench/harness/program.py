@@ -279,15 +279,16 @@ class PlcProgram:
 def _analysed(given: Sequence[Path], library: bool
               ) -> tuple[CheckedProgram, tuple[Path, ...], tuple[str, ...]]:
     """The user's files checked with what they use of the armbench library, as ``armbench
-    check/run/serve`` do (so a program that runs there runs here): the checked program, the
-    files it was compiled from, and the library's note. Raises CompileFailed."""
+    run/serve`` do (so a program that runs there runs here; the names OpenPLC's upload needs
+    are not asked for): the checked program, the files it was compiled from, and the
+    library's note. Raises CompileFailed."""
     from ..compiler.diagnostics import CompileFailed
     from ..compiler.driver import analyse_program
-    from ..compiler.targets import OPENPLC_ONLY
+    from ..compiler.targets import SOFT_PLC
     from ..locate import select_library
 
     selection = select_library(given, library)
-    analysis = analyse_program(selection.given, selection.library, OPENPLC_ONLY)
+    analysis = analyse_program(selection.given, selection.library, SOFT_PLC)
     files = (*selection.given, *map(Path, analysis.library.files))
     if analysis.program is None:
         raise CompileFailed(analysis.diagnostics.sorted())
