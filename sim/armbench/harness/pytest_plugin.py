@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import socket
 import sys
 import time
@@ -260,6 +261,25 @@ def pytest_configure(config: pytest.Config) -> None:
             f"that moves, calibrates or counts the one arm, as most of tests/modbus does, then "
             f"fails when another worker moves it)")
     config.pluginmanager.register(_SweepReporter(config, max(workers, 1)), "armbench-sweep")
+
+
+@pytest.hookimpl(trylast=True)  # after the session's fixtures are torn down
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """In a pytest-xdist worker: free the session's garbage now, before the worker tells the
+    controller it has finished.
+
+    pytest collects garbage once more when it unconfigures, after that message, and the
+    controller then gives the worker 5 s to end (execnet) before it sends it a SIGINT. After a
+    long run a worker holds hundreds of thousands of objects in reference cycles (syntax trees
+    of compiled programs, hypothesis' search trees), which only a full collection frees; that
+    took over 5 s on a loaded 2-core machine, and the KeyboardInterrupt, landing in whatever
+    Python code ran during the collection (hypothesis' gc callback), printed a traceback
+    after a green run. Collected here, while the controller still waits for this worker, the
+    later collections have nothing to free, and frozen survivors are not even traversed."""
+    if not hasattr(session.config, "workerinput"):
+        return
+    gc.collect()
+    gc.freeze()
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
