@@ -298,3 +298,23 @@ def test_the_editors_st_compiles_with_strucpp_and_gxx(built_st: Path) -> None:
     res = tool.cxx("-O1", "-c", str(cpp), "-o", str(obj))
     assert res.ok, res.output[-4000:]
     assert obj.is_file()
+
+
+def test_inline_arrays_the_editor_cannot_read_get_a_named_type(tmp_path: Path) -> None:
+    src = tmp_path / "Tables.st"
+    src.write_text(BLINK.replace("Angle : REAL;", "Angle : REAL;\n    Grid : ARRAY[1..2, 1..3] "
+                                 "OF INT;\n    Offsets : ARRAY[-2..2] OF REAL;\n"
+                                 "    Row : ARRAY[0..4] OF DINT := [5(7)];"))
+    assert main(["export", str(src), "--out", str(tmp_path / "out")]) == 0
+    root = tmp_path / "out" / project_dir("Blink")
+    text = (root / "pous/programs/Blink.st").read_text("utf-8")
+    assert "\tGrid : Blink_Grid;\n\tOffsets : Blink_Offsets;\n" \
+        "\tRow : ARRAY[0..4] OF DINT := [5(7)];\n" in text
+    types = json.loads((root / "project.json").read_text("utf-8"))["data"]["dataTypes"]
+    assert types == [
+        {"name": "Blink_Grid", "derivation": "array",
+         "baseType": {"definition": "base-type", "value": "int"},
+         "dimensions": [{"dimension": "1..2"}, {"dimension": "1..3"}]},
+        {"name": "Blink_Offsets", "derivation": "array",
+         "baseType": {"definition": "base-type", "value": "real"},
+         "dimensions": [{"dimension": "-2..2"}]}]

@@ -15,9 +15,10 @@ comment, which becomes the variable's documentation. Comments standing alone in 
 are not kept (the loader refuses such a line), and a ``VAR CONSTANT`` block loads as a plain
 ``VAR`` (the editor has no constant flag). Data types go into ``project.json`` as the editor's
 structure / array / enumeration records; what it has no record for (subranges, aliases,
-enumerations with explicit values) is refused with a message. An inline array of more than
-one dimension is declared through a generated named type (editor 4.1 reads only
-one-dimensional arrays inline; later versions read both). The output is deterministic.
+enumerations with explicit values) is refused with a message. An inline array the loader
+cannot read (more than one dimension: editor 4.1 reads only one inline, later versions read
+both; a negative bound) is declared through a generated named type. The output is
+deterministic.
 """
 
 from __future__ import annotations
@@ -178,15 +179,20 @@ class _Builder:
             f"{self._where(td)}: type {td.name} is a {what}; the OpenPLC v4 editor has data "
             "types of three kinds only (structure, array, enumeration): use the base type")
 
+    def inline_ok(self, tref: A.ArrayTypeRef) -> bool:
+        """Whether the editor's loader reads this array type inline: one dimension whose
+        bounds are words and digits (its type pattern has no comma in 4.1, no minus sign)."""
+        return len(tref.ranges) == 1 and all(
+            re.fullmatch(r"[\w.]+", d["dimension"]) for d in self.dimensions(tref))
+
     def declared_type(self, owner: str, decl: A.VarDecl) -> str:
-        """The type text of a declaration line; an inline array of several dimensions
-        becomes a generated named type (why: editor 4.1's loader reads `ARRAY[a..b] OF T`
-        inline only with one dimension)."""
+        """The type text of a declaration line; an inline array the editor's loader cannot
+        read (several dimensions, a negative bound) becomes a generated named type."""
         t = decl.type
         if isinstance(t, A.NamedTypeRef):
             return self.spelled(t.name)
         if isinstance(t, A.ArrayTypeRef):
-            if len(t.ranges) == 1:
+            if self.inline_ok(t):
                 return self.array_text(t)
             name = f"{owner}_{decl.name}"
             while name.upper() in self.taken:
@@ -228,14 +234,9 @@ class _Builder:
         return "\n\n".join(out)
 
     def global_record(self, decl: A.VarDecl) -> dict[str, Any]:
-        """A configuration global as project.json keeps it."""
-        t = decl.type
-        if isinstance(t, A.ArrayTypeRef) and len(t.ranges) > 1:
-            type_rec: dict[str, Any] = {"definition": "user-data-type",
-                                        "value": self.declared_type("Config0", decl)}
-        else:
-            type_rec = self.type_record(t)
-        rec: dict[str, Any] = {"name": decl.name, "type": type_rec,
+        """A configuration global as project.json keeps it (a record, so any array type
+        stays inline)."""
+        rec: dict[str, Any] = {"name": decl.name, "type": self.type_record(decl.type),
                                "location": decl.address or ""}
         if decl.init is not None:
             rec["initialValue"] = _init_text(decl.init)
