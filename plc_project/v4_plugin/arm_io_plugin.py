@@ -358,7 +358,8 @@ class ImageIo:
     time: ``refresh`` reads every location in ``reads`` under one hold of the image lock (one
     scan's outputs, not a mix of two), ``get_var`` answers from that, ``set_var`` queues, and
     ``flush`` writes the queue in order under one hold of the lock, so the runtime's journal
-    applies it in one drain: a list (the IMU's ten words) reaches the program whole.
+    applies it in one drain: a list (the IMU's ten words) reaches the program whole. The
+    lock is never held across an I2C transfer: the scan never waits for the bus.
 
     A location the program does not declare reads as None (a NULL cell of the image)."""
 
