@@ -641,15 +641,14 @@ class PwmLoop:
         try:
             mode1 = self.bus.read_i2c_block_data(address, self.psm.MODE1, 1)[0]
         except OSError as exc:
-            self._chip_fault(f"PCA9685 at 0x{address:02X} on I2C: {exc}; check wiring, power "
-                             "and address")
-            self._fault(now)
-            return
-        if mode1 & self.psm.MODE1_SLEEP or not mode1 & self.psm.MODE1_AI:
-            self._chip_fault(f"PCA9685 at 0x{address:02X} was reset (MODE1 reads "
-                             f"0x{mode1:02X}, asleep: it lost power?)")
-            self._fault(now)
-            self._publish(ready=False, fault=True)
+            problem = f"on I2C: {exc}; check wiring, power and address"
+        else:
+            if not mode1 & self.psm.MODE1_SLEEP and mode1 & self.psm.MODE1_AI:
+                return
+            problem = f"was reset (MODE1 reads 0x{mode1:02X}, asleep: it lost power?)"
+        self._chip_fault(f"PCA9685 at 0x{address:02X} {problem}")
+        self._fault(now)
+        self._publish(ready=False, fault=True)  # after the driver's flags of this step
 
     def step(self, now: float) -> None:
         try:
@@ -692,10 +691,14 @@ class PwmLoop:
             return
         if self.driver.initialised:
             self._check_chip(now)
-        if self.bus is not None and self.driver.initialised and self.log.active("pca9685"):
+        if self.bus is None or not self.driver.initialised:
+            return
+        if self.log.active("pca9685"):
             self.log.clear("pca9685", f"PCA9685 at 0x{self.settings.pca9685_address:02X} "
                                       "answers again; servos follow the controller once it "
                                       "has relaxed them")
+        if self.log.active("loop"):
+            self.log.clear("loop", "PWM loop runs again")
 
     def _prescale(self, now: float) -> int | None:
         """The PRE_SCALE the controller computes its words with; None until it is valid."""
