@@ -418,6 +418,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         else:
             exp = generate(name=args.name)
         out = Path(args.out)
+    for warning in exp.warnings:
+        print(f"armbench export: warning: {warning}", file=sys.stderr)
     if args.check:
         stale = exp.stale(out)
         for path, why in stale:
