@@ -8,7 +8,11 @@ changes by at most the acceleration limit times the cycle and the acceleration b
 the jerk limit times the cycle, re-plans included. Bad input mid-move (NaN, a target beyond
 the limits, a zero limit, a bad cycle time) gives the documented ErrorId while the setpoints
 carry on exactly along the last valid trajectory, never NaN; good input plans again from
-there.
+there. The error clears when the inputs are plannable again, also when they come back to
+the values they had (a cycle time, a limit or a target that was NaN, Inf, 0 or negative for a
+few scans), moving and at rest: a bad cycle time stops the trajectory's time while it lasts,
+a plan's own error outlasts it, and a valid cycle time changed mid-move keeps to the same
+trajectory within the limits per cycle.
 """
 
 from __future__ import annotations
