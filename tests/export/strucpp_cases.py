@@ -159,6 +159,38 @@ def kinematics_case() -> ValueCase:
     return ValueCase("ForwardKinematic_V1 / InverseKinematik_V1", program, reference, scales)
 
 
+def wrap_case() -> ValueCase:
+    """WrapDeg180 on every half turn from -5.5 to 5.5 turns and on random angles: its
+    REAL_TO_DINT meets exact halves there, which STruC++ rounds away from zero (std::round)
+    and MatIEC to even; the function must give the same answer either way."""
+    rng = np.random.default_rng(7)
+    values = [180.0 * k for k in range(-11, 12)] + [f32(180.0 * k + d) for k in (-3, -1, 1, 3)
+                                                     for d in (-1e-4, 1e-4)]
+    values += f32s(rng.uniform(-5000.0, 5000.0, 300))
+    n = len(values)
+    body = "\n".join([assign_list("Angle", values), f"""  FOR I := 1 TO {n} DO
+    Wrapped[I] := WrapDeg180(Angle[I]);
+  END_FOR;"""])
+    program = ValueProgram(
+        "StrucppWrap", (Out("Wrapped", "REAL", n),),
+        f"""    Angle : ARRAY[1..{n}] OF REAL;
+    I : INT;""", body)
+
+    def reference(v: Values) -> list[RefCheck]:
+        worst = 0.0
+        failures = []
+        for k, a in enumerate(values):
+            got = v["WRAPPED"][k]
+            if not -180.0 < got <= 180.0:
+                failures.append(f"WrapDeg180({a}) = {got} outside (-180, 180]")
+            worst = worse(worst, angle_diff(got, a))
+        # tests/unit/test_kinematics.py: within 1e-3 deg, half-open range
+        return [RefCheck("WrapDeg180 vs the angle itself", worst, 1e-3, "deg",
+                         tuple(failures))]
+
+    return ValueCase("WrapDeg180 (half turns)", program, reference, {"Wrapped": 180.0})
+
+
 # ------------------------------------------------------------------ MG996R.st
 def mg996r_case() -> ValueCase:
     """MG996R_AngleToPulse / MG996R_PulseToAngle with the default calibration (1000..2000 us
@@ -904,6 +936,7 @@ class CaseSpec:
 
 SPECS = (
     CaseSpec("StrucppKinematics", kinematics_case),
+    CaseSpec("StrucppWrap", wrap_case),
     CaseSpec("StrucppServo", mg996r_case),
     CaseSpec("StrucppPwm", pca9685_case),
     CaseSpec("StrucppFixedIk", fixed_ik_case),
