@@ -21,6 +21,8 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 # ST type -> (C printf format, C cast) of an output element
 _PRINT = {
     "REAL": ("%.9g", "double"), "LREAL": ("%.17g", "double"),
@@ -106,7 +108,10 @@ def parse_printed(stdout: str, programs: Sequence[ValueProgram]) -> dict[str, Va
     for m in LINE.finditer(stdout):
         inst, name, index, text = m[1].upper(), m[2].upper(), int(m[3]), m[4]
         o = wanted[inst][name]
-        out[inst][name][index - 1] = float(text) if o.real else int(text)
+        # %.9g round-trips a float32 only when read back as a float32: as a double it can
+        # be off by nearly half a float32 ulp
+        value = float(np.float32(text)) if o.st_type == "REAL" else float(text)
+        out[inst][name][index - 1] = value if o.real else int(text)
     return out
 
 
