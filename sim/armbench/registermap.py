@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -28,7 +28,7 @@ from .compiler.diagnostics import CompileFailed
 from .compiler.driver import analyse
 from .compiler.symbols import CheckedProgram, InstanceModel, PouSym, VarSym
 from .compiler.targets import OPENPLC_ONLY
-from .compiler.types import StructType
+from .compiler.types import PouType, StructType
 from .locate import LocateError, default_project, find_checkout, package_checkout
 from .mailbox_check import check_word
 from .softplc import modbus_map as mm
@@ -302,12 +302,9 @@ def _located(variables: Iterable[VarSym], sources: dict[str, list[str]],
 def constants(paths: Sequence[str | Path] = SOURCES,
               instance: str | None = None) -> dict[str, int]:
     """The program's integer VAR CONSTANTs (command codes, states, ...) by name, and the
-    fields of its constant STRUCTs as `Var.Field` (error codes), from the ST itself."""
-    return _constants(_instance(paths, instance))
-
-
-def _constants(inst: InstanceModel) -> dict[str, int]:
-    return _pou_constants(inst.pou)
+    fields of its code STRUCTs as `Var.Field` (error codes), from the ST itself."""
+    prog, inst = _analysed(paths, instance)
+    return _pou_constants(inst.pou, prog.pous)
 
 
 def _root_name(e: A.Expr) -> str | None:
@@ -316,26 +313,45 @@ def _root_name(e: A.Expr) -> str | None:
     return e.name.upper() if isinstance(e, A.Name) else None
 
 
-def _written(pou: A.Pou) -> set[str]:
-    """Variables the POU's body may change: assignment targets and anything it passes to a
-    call by name (an output, or an in-out the callee may write)."""
+def _callee(call: A.Call, pou: PouSym, pous: Mapping[str, PouSym]) -> PouSym | None:
+    """The user POU a call runs: a FUNCTION by name, or an FB instance's block."""
+    name = _root_name(call.callee) if isinstance(call.callee, A.Name) else None
+    if name is None:
+        return None
+    var = pou.vars.get(name)
+    if var is not None and isinstance(var.type, PouType):
+        return var.type.symbol if isinstance(var.type.symbol, PouSym) else None
+    return pous.get(name)
+
+
+def _written(pou: PouSym, pous: Mapping[str, PouSym]) -> set[str]:
+    """Variables the POU's body may change: assignment targets, outputs (`=>`) and what it
+    binds to a callee's VAR_IN_OUT."""
+    assert pou.node is not None
     names: set[str] = set()
-    for node in A.walk(pou.body):
-        target = node.target if isinstance(node, A.Assign) else \
-            node.value if isinstance(node, A.Arg) else None
-        root = _root_name(target) if target is not None else None
-        if root is not None:
-            names.add(root)
+    for node in A.walk(pou.node.body):
+        if isinstance(node, A.Assign):
+            names.add(_root_name(node.target) or "")
+        elif isinstance(node, A.Call):
+            callee = _callee(node, pou, pous)
+            formals = [] if callee is None else \
+                [v for v in callee.vars.values() if v.kind in (A.VAR_INPUT, A.VAR_IN_OUT)]
+            for k, arg in enumerate(node.args):
+                param = None if callee is None else \
+                    callee.vars.get(arg.name.upper()) if arg.name else \
+                    formals[k] if k < len(formals) else None
+                if arg.is_output or (param is not None and param.kind == A.VAR_IN_OUT):
+                    names.add(_root_name(arg.value) or "")
     return names
 
 
-def _pou_constants(pou: PouSym) -> dict[str, int]:
+def _pou_constants(pou: PouSym, pous: Mapping[str, PouSym]) -> dict[str, int]:
     """Integer constants, and the fields of the code STRUCTs (error codes, registers) the POU
-    reads: declared as plain VARs without an initialiser (STruC++ takes no STRUCT constant
-    without an initialiser, and none takes a STRUCT initialiser everywhere), their values
-    are the type's field defaults as long as the POU never writes them."""
+    reads: plain VARs without an initialiser (STruC++ takes no STRUCT constant without an
+    initialiser, and no dialect but MatIEC's takes a STRUCT initialiser everywhere), whose
+    values are the type's field defaults as long as the POU never writes them."""
     out: dict[str, int] = {}
-    written = _written(pou.node) if pou.node is not None else set()
+    written = _written(pou, pous) if pou.node is not None else set()
     for var in pou.vars.values():
         if var.constant and isinstance(var.init, Literal) and var.init.kind == "int":
             out[var.name] = int(var.init.value)
@@ -361,14 +377,14 @@ def controller_constants() -> dict[str, int]:
     by the block that runs it. A name two blocks give different values (a block's private
     constant, e.g. a call mode) is left out unless the program declares it."""
     prog, inst = _controller_analysis()
-    out = _constants(inst)
+    out = _pou_constants(inst.pou, prog.pous)
     merged: dict[str, int] = {}
     ambiguous: set[str] = set()
     parts = {str(Path(p).resolve()) for p in COMPONENTS}
     for pou in prog.pous.values():
         if pou.node is None or str(Path(pou.node.pos.file).resolve()) not in parts:
             continue
-        for name, value in _pou_constants(pou).items():
+        for name, value in _pou_constants(pou, prog.pous).items():
             if merged.setdefault(name, value) != value:
                 ambiguous.add(name)
     for name, value in merged.items():

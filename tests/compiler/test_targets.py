@@ -8,11 +8,22 @@ positive and one negative case per code, per target) and against the real tools:
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from armbench.compiler.driver import analyse_program
+from armbench.compiler.diagnostics import CompileFailed
+from armbench.compiler.driver import analyse_program, emit_files
 from armbench.compiler.reserved import codesys_family_reserves, matiec_reserves
-from armbench.compiler.targets import ALL, CODESYS, CODESYS_ONLY, OPENPLC, OPENPLC_ONLY, Target
+from armbench.compiler.targets import (
+    ALL,
+    CODESYS,
+    CODESYS_ONLY,
+    OPENPLC,
+    OPENPLC_ONLY,
+    SOFT_PLC,
+    Target,
+)
 from armbench.locate import default_project
 
 
@@ -38,6 +49,18 @@ def test_targets_by_name() -> None:
 def test_severity(target: Target, refused_by: set[str], warned_by: set[str],
                   want: str | None) -> None:
     assert target.severity(frozenset(refused_by), frozenset(warned_by)) == want
+
+
+@pytest.mark.parametrize(("target", "want"), [
+    (ALL, "error"), (OPENPLC_ONLY, "error"),  # a check for OpenPLC, or its upload (export)
+    (CODESYS_ONLY, "warning"),  # CODESYS takes any name
+    (SOFT_PLC, "warning"),  # build/run/serve: OpenPLC's rules, but nothing is uploaded
+])
+def test_upload_severity(target: Target, want: str) -> None:
+    """What only OpenPLC's upload refuses (the names Config0 and Res0)."""
+    assert target.upload_severity(frozenset({OPENPLC})) == want
+    assert SOFT_PLC.severity(frozenset({OPENPLC})) == "error"  # the compiler's own rules stay
+    assert SOFT_PLC.name == "openplc" and SOFT_PLC != OPENPLC_ONLY
 
 
 @pytest.mark.parametrize("name", ["Bit", "bit", "BIT", "Cal", "S", "R", "Ld", "Get", "Endif",
@@ -68,3 +91,17 @@ def test_library_and_controller_are_clean(target: Target) -> None:
     analysis = analyse_program(default_project().sources(), target=target)
     assert [d.render() for d in analysis.diagnostics.sorted()] == []
     assert analysis.program is not None
+
+
+def test_the_soft_plc_compiles_any_configuration_name(tmp_path: Path) -> None:
+    """The Python API compiles for the soft PLC, as `armbench run` does: a CONFIGURATION not
+    named Config0 is a warning there, an error when compiling for OpenPLC's upload."""
+    src = tmp_path / "plant.st"
+    src.write_text("PROGRAM Main\n  VAR n : DINT; END_VAR\n  n := n + 1;\nEND_PROGRAM\n"
+                   "CONFIGURATION Plant\n  RESOURCE Res0 ON PLC\n"
+                   "    TASK T1(INTERVAL := T#10ms, PRIORITY := 0);\n"
+                   "    PROGRAM Inst WITH T1 : Main;\n  END_RESOURCE\nEND_CONFIGURATION\n")
+    prog, _ = emit_files([src])
+    assert prog.config is not None and prog.config.name == "Plant"
+    with pytest.raises(CompileFailed, match="needs it to be named Config0"):
+        emit_files([src], target=OPENPLC_ONLY)

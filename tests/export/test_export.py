@@ -287,7 +287,7 @@ def test_xml_details(project: tuple[CheckedProgram, bytes, bytes]) -> None:
     assert scans.get("address") == "%MD0"
     assert scans.find("p:type/p:UDINT", N) is not None
     consts = prog.findall("p:interface/p:localVars[@constant='true']", N)
-    assert consts and "Err" in [v.get("name") for lst in consts for v in lst]
+    assert consts and "CmdMoveXyz" in [v.get("name") for lst in consts for v in lst]
     geo = root.find(".//p:dataType[@name='ArmGeometry']/p:baseType/p:struct", N)
     a1 = geo.find("p:variable[@name='A1']/p:initialValue/p:simpleValue", N)
     assert a1.get("value") == "100.0"

@@ -105,8 +105,8 @@ def test_fk_frames_and_jacobian_match_toolbox(st_module: Any, name: str) -> None
             < JAC_TOL
     # every frame: fkine_all gives frames 0..n (without the tool)
     q = random_q(rng, robot)
-    frames = np.array(st_module.call("ChainFramePoses", Chain=chain,
-                                     Joints=joints_st(robot, q, MM_PER_M)))
+    frames = np.array([f["Pose"] for f in st_module.call(
+        "ChainFramePoses", Chain=chain, Joints=joints_st(robot, q, MM_PER_M))])
     ref_all = robot.fkine_all(q)
     for i in range(robot.n + 1):
         assert np.abs(frames[i][:3, 3] - ref_all[i].A[:3, 3] * MM_PER_M).max() < FK_TOL_MM
@@ -122,8 +122,8 @@ def test_short_chain_columns_past_count_are_zero(st_module: Any) -> None:
                                 Joints=joints_st(robot, q, MM_PER_M)))
     assert np.abs(J[:3, :2] / MM_PER_M - robot.jacob0(q)[:3]).max() < JAC_TOL
     assert not J[:, 2:].any()
-    frames = np.array(st_module.call("ChainFramePoses", Chain=chain,
-                                     Joints=joints_st(robot, q, MM_PER_M)))
+    frames = np.array([f["Pose"] for f in st_module.call(
+        "ChainFramePoses", Chain=chain, Joints=joints_st(robot, q, MM_PER_M))])
     for i in range(3, 7):  # frames past Count repeat the last one
         assert np.array_equal(frames[i], frames[2])
 

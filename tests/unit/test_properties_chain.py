@@ -155,7 +155,7 @@ def test_frames_tool_pose_and_jacobians(st_module: Any, puma: Any, arm4: Any, q:
     if bad is not None:
         joints[1] = bad
     frames = st_module.call("ChainFramePoses", Chain=chain, Joints=joints)
-    stack = np.array(frames["Frame"] if isinstance(frames, dict) else frames)
+    stack = np.array([f["Pose"] for f in frames])
     assert np.isfinite(stack).all()
     tool_pose = np.array(st_module.call("ChainToolPose", Chain=chain, Frames=frames))
     jac = np.array(st_module.call("ChainJacobianFromFrames", Chain=chain, Frames=frames))

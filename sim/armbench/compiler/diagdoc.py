@@ -25,19 +25,21 @@ the CODESYS family refuse (Targets, below).
 
 
 TARGETS = """
-## Targets (E0214, E0215, E0309, E0411)
+## Targets (E0214, E0215, E0309, E0411, E0602)
 
 `armbench check --target openplc|codesys|all` (default `all`; in Python
 `check_files(paths, target=Target.named("codesys"))`) says which compilers the code is for:
 `openplc` is MatIEC, `codesys` IEC 61131-3's 3rd edition and the CODESYS family (CODESYS V3,
 TwinCAT 3, RuSTy, which follows CODESYS). All the other codes are the subset the bench compiles
-and are errors for every target. These four are enforced by some dialects only, so their
+and are errors for every target. These five are enforced by some dialects only, so their
 severity follows the target: an **error** when a dialect you check for refuses the construct,
 a **warning** when only one you do not check for refuses it (it builds where you deploy, not
 everywhere) or when one you check for only warns. `all` is the default because the library
-must build everywhere. `build`, `run`, `serve` and `export` compile what OpenPLC runs: they use
-`openplc` and fail only on its errors; `export`, whose CODESYS XML carries the same text,
-also prints what `codesys` refuses, as warnings.
+must build everywhere. `export` writes the OpenPLC upload: it uses `openplc` and fails only on
+its errors; its CODESYS XML carries the same text, so it also prints what `codesys` refuses,
+as warnings. `build`, `run`, `serve` and the pytest plugin compile what OpenPLC runs, for the
+bench's soft PLC: `openplc`, except that the names OpenPLC's upload needs (E0602's Config0 and
+Res0) are a warning on stderr, since the soft PLC runs any names.
 
 | code | `--target openplc` | `--target codesys` | `--target all` |
 |---|---|---|---|
@@ -45,6 +47,7 @@ also prints what `codesys` refuses, as warnings.
 | E0215 `__`, trailing `_` | error | error (`__`), warning (trailing) | error |
 | E0309 TRUNC narrowed | nothing | warning | warning |
 | E0411 array element as in-out | error | warning | error |
+| E0602 CONFIGURATION not Config0, RESOURCE not Res0 | error | warning | error |
 
 - **E0214.** One list, `sim/armbench/compiler/reserved.py`, with its sources: IEC 61131-3
   (3rd edition) keywords, data types, standard functions and FBs; the keywords of CODESYS's
@@ -70,6 +73,12 @@ also prints what `codesys` refuses, as warnings.
   VAR_IN_OUT given an element, and a STRUCT field without an index build. Write
   `Tmp := Arr[I]; Ok := Bump(Val := Tmp); Arr[I] := Tmp;`, or pass the whole array as
   VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK.
+- **E0602, the names.** OpenPLC v3's upload needs `CONFIGURATION Config0` and `RESOURCE Res0`
+  (its runtime's build looks for the C files MatIEC names after them); MatIEC compiles any
+  names, CODESYS takes any, and the soft PLC runs any, saying
+  `warning[E0602]: CONFIGURATION 'Plant': OpenPLC's upload needs it to be named Config0 (the
+  bench's soft PLC runs it as it is)`. The rest of E0602 (one RESOURCE, a periodic TASK, each
+  PROGRAM instance WITH a TASK) is what the bench runs, an error for every target.
 """
 
 

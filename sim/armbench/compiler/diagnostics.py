@@ -28,6 +28,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0108": ("nesting too deep", "MatIEC's parser stack overflows (e.g. beyond 63 nested IFs "
               "or 189 nested parentheses; see Limits below): move inner parts into variables or "
               "FUNCTIONs (long flat chains like a + b + c are fine)"),
+    "E0109": ("CONFIGURATION out of form",
+              "write CONFIGURATION Config0 / RESOURCE Res0 ON PLC / TASK MainTask(INTERVAL := "
+              "T#10ms, PRIORITY := 0); / PROGRAM Inst WITH MainTask : Main; / END_RESOURCE / "
+              "END_CONFIGURATION (Main: your PROGRAM; TASKs before the PROGRAM instances)"),
     "E0200": ("undeclared name", "declare the variable, type or POU"),
     "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
     "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
@@ -108,7 +112,10 @@ CODES: dict[str, tuple[str, str]] = {
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
-    "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
+    "E0602": ("configuration layout", "one RESOURCE, a periodic TASK, each PROGRAM instance "
+              "WITH a TASK; the names Config0 and Res0 for OpenPLC's upload (an error for "
+              "--target openplc and all, a warning for codesys and for build, run and serve: "
+              "see Targets below)"),
     "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
     "N0001": ("file is not UTF-8: read as Windows-1252 (cp1252); a note, not an error",
               "nothing if the accented characters show right; else save the file as UTF-8"),

@@ -16,6 +16,12 @@ check then follows from the target:
 So a name CODESYS reserves is an error for ``codesys`` and ``all`` but a warning for
 ``openplc``, where it builds; an array element MatIEC's C cannot bind is an error for
 ``openplc`` and ``all`` and a warning for ``codesys``.
+
+A few rules are the upload's, not the compiler's: OpenPLC's upload needs the CONFIGURATION
+named Config0 and its RESOURCE Res0, though MatIEC compiles any names and the bench's soft
+PLC runs them. ``upload_severity`` grades those: as above for a check or an export, and at
+most a warning for ``SOFT_PLC``, what `armbench build`, `run`, `serve` and the pytest plugin
+compile for (the dialect OpenPLC's, the program run by the bench, not uploaded).
 """
 
 from __future__ import annotations
@@ -33,6 +39,9 @@ class Target:
     """The dialects one check is for."""
 
     dialects: frozenset[str]
+    # False: compiled to run on the bench's soft PLC, not to be uploaded to a PLC of these
+    # dialects, so what only an upload refuses is a warning (upload_severity)
+    upload: bool = True
 
     @classmethod
     def named(cls, name: str) -> Target:
@@ -56,7 +65,14 @@ class Target:
             return "warning"
         return None
 
+    def upload_severity(self, refused_by: frozenset[str]) -> str | None:
+        """Like severity, for a construct the upload to a PLC of ``refused_by`` refuses (the
+        dialect's compiler takes it): at most a warning when nothing is uploaded."""
+        severity = self.severity(refused_by)
+        return "warning" if severity == "error" and not self.upload else severity
+
 
 ALL = Target.named("all")
 OPENPLC_ONLY = Target.named(OPENPLC)
 CODESYS_ONLY = Target.named(CODESYS)
+SOFT_PLC = Target(frozenset({OPENPLC}), upload=False)

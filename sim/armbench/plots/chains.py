@@ -72,14 +72,16 @@ def frames_figure(module: Any, out: Path) -> Path:
 
     fig = plt.figure(figsize=(11.0, 5.2))
     q_puma = [20.0, 60.0, -150.0, 0.0, 45.0, 0.0]
-    frames = np.array(module.call("ChainFramePoses", Chain=puma_chain(), Joints=q_puma))
+    frames = np.array([f["Pose"] for f in
+                       module.call("ChainFramePoses", Chain=puma_chain(), Joints=q_puma)])
     _draw_frames(fig.add_subplot(1, 2, 1, projection="3d"), frames, 6, 120.0, None,
                  "Puma 560, standard DH: frame i on joint i+1's axis\n"
                  f"q = {q_puma} deg (x red, y green, z blue)")
     chain: dict[str, Any] = {"Links": [link()] * 6}
     _, outs = module.call_full("Arm4AxisFillChain", Geometry=GEO4, Chain=chain)
     q4 = [30.0, 50.0, -100.0, 50.0, 0.0, 0.0]
-    frames4 = np.array(module.call("ChainFramePoses", Chain=outs["Chain"], Joints=q4))
+    frames4 = np.array([f["Pose"] for f in
+                        module.call("ChainFramePoses", Chain=outs["Chain"], Joints=q4)])
     tool = np.array(module.call("ForwardKinematic_4Axis", Geometry=GEO4, Joints=q4))[:3, 3]
     _draw_frames(fig.add_subplot(1, 2, 2, projection="3d"), frames4, 4, 30.0, tool,
                  "Document 001's 4-axis arm, modified DH: frame i on joint i's axis\n"
