@@ -53,6 +53,9 @@ class Index(Expr):
 class Unary(Expr):
     op: str  # "-", "+", "NOT"
     operand: Expr
+    # the operand is written in parentheses right after the operator, `NOT (a AND b)`:
+    # STruC++ parses that NOT as a call of its NOT function, with C++ typing rules of its own
+    parenthesised: bool = False
 
 
 @dataclass(eq=False)
