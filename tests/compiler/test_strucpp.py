@@ -10,6 +10,10 @@ STruC++'s verdict is "refused" when STruC++ rejects the file, g++ fails, or a CH
 hold; the checker must report the file's code for --target openplc-v4 exactly then. A case
 of E0311, E0312, E0413 or E0508 is refused by the wrong values it shows.
 
+Where g++ fails on E0310 and E0412 cases, it fails on exactly the ST lines the checker
+flags (STruC++ writes #line directives with --line-directives): the C++ type model of
+armbench.compiler.cxxtypes is checked construct by construct, not only file by file.
+
 The bench, which computes what MatIEC computes, must satisfy every CHECK (test_checks_hold_
 in_the_bench): the CHECKs are the OpenPLC v3 values, not STruC++'s.
 
@@ -67,10 +71,15 @@ def strucpp() -> Strucpp:
     return tool
 
 
+# codes whose every flagged construct is one statement g++ reports by its ST line
+LINE_EXACT = frozenset({"E0310", "E0412"})
+
+
 @dataclass(frozen=True)
 class Verdict:
     refused: bool
     why: str
+    lines: frozenset[int] = frozenset()  # the ST lines g++ fails on
 
 
 def cxx_path(path: str) -> str:
@@ -95,12 +104,14 @@ def strucpp_verdict(tool: Strucpp, st: Path, work: Path) -> Verdict:
     src = work / st.name
     shutil.copy(st, src)
     cpp = work / "program.cpp"
-    made = tool.compile(src, cpp)
+    made = tool.compile(src, cpp, "--line-directives")
     if not made.ok:
         return Verdict(True, f"STruC++ refuses it:\n{made.output}")
     syntax = tool.cxx(*FLAGS, "-fsyntax-only", str(cpp))
     if not syntax.ok:
-        return Verdict(True, f"g++ fails on its C++:\n{syntax.output}")
+        lines = {int(m) for m in re.findall(rf"{re.escape(st.name)}:(\d+):\d+: error",
+                                            syntax.output)}
+        return Verdict(True, f"g++ fails on its C++:\n{syntax.output}", frozenset(lines))
     _, checks = parse_checks(st)
     if not checks:
         return Verdict(False, "STruC++ and g++ build it")
@@ -138,12 +149,18 @@ def test_corpus_has_both_kinds_for_every_code() -> None:
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES])
 def test_strucpp_agrees(strucpp: Strucpp, path: Path, tmp_path: Path) -> None:
     code = path.stem.split("_")[0]
-    ours = [d.render() for d in check_files([path], target=OPENPLC_V4_ONLY)]
-    reported = any(f"[{code}]" in d for d in ours)
+    diags = check_files([path], target=OPENPLC_V4_ONLY)
+    ours = [d.render() for d in diags]
+    reported = any(d.code == code for d in diags)
     verdict = strucpp_verdict(strucpp, path, tmp_path)
     assert reported == verdict.refused, (
         f"--target openplc-v4 {'reports' if reported else 'does not report'} {code}, and "
         f"{verdict.why}\n" + "\n".join(ours))
+    if code in LINE_EXACT and verdict.lines:
+        flagged = {d.pos.line for d in diags if d.code == code}
+        assert flagged == verdict.lines, (
+            f"g++ fails on lines {sorted(verdict.lines)}, {code} flags {sorted(flagged)}\n"
+            + verdict.why)
 
 
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES
