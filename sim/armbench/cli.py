@@ -466,11 +466,12 @@ def make_parser() -> argparse.ArgumentParser:
                    "library and plc_project/Controller.st)")
     _library_option(c)
     c.add_argument("--target", choices=TARGET_NAMES, default="all",
-                   help="the dialects to check for: openplc (MatIEC and OpenPLC's upload, "
-                   "which needs CONFIGURATION Config0 and RESOURCE Res0), codesys (IEC 61131-3 "
-                   "3rd edition, CODESYS, TwinCAT, RuSTy) or all (default); what only the "
-                   "others refuse is a warning. build, run and serve compile for the soft PLC: "
-                   "openplc's rules, with the upload's names a warning")
+                   help="the dialects to check for: openplc (OpenPLC v3's MatIEC and its "
+                   "upload, which needs CONFIGURATION Config0 and RESOURCE Res0), openplc-v4 "
+                   "(OpenPLC v4's STruC++), codesys (IEC 61131-3 3rd edition, CODESYS, "
+                   "TwinCAT, RuSTy) or all (default); what only the others refuse is a "
+                   "warning. build, run and serve compile for the soft PLC: openplc's rules, "
+                   "with the upload's names a warning")
     c.set_defaults(func=cmd_check)
     b = sub.add_parser("build", help="compile to a cached shared library")
     b.add_argument("files", nargs="+")

@@ -1,5 +1,5 @@
 """Syntax errors in a CONFIGURATION: a message that says what is out of place and shows the
-right form, in the file's own names where it declares them (E0109).
+right form, in the file's own names where it declares them (E0111).
 
 The grammar's error alone names only the text it did not expect ("unexpected 'WITH Main'"),
 which does not tell someone writing their first CONFIGURATION where WITH goes. The common
@@ -110,7 +110,7 @@ class _Names:
 
 
 class ConfigurationHints:
-    """The E0109 messages of one file's syntax errors; the names it declares are read once,
+    """The E0111 messages of one file's syntax errors; the names it declares are read once,
     at its first error in a CONFIGURATION."""
 
     def __init__(self, pf: ParsedFile) -> None:

@@ -1,4 +1,5 @@
 """The rules only some dialects enforce; their severity comes from the target (targets.py).
+What STruC++ (OpenPLC v4) refuses is its own module, strucpp.py.
 
 Needs: a CheckedProgram (after resolve and rules.check_names; what an erroneous program
 leaves unresolved is skipped). Each rule was established on the real tools:
@@ -30,6 +31,7 @@ from . import ast as A
 from .diagnostics import Diagnostics
 from .reserved import codesys_family_reserves, matiec_reserves
 from .rules import declared_names
+from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
 from .targets import CODESYS, OPENPLC, Target
 from .types import ElemType, Type
@@ -44,6 +46,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_trunc_narrowing(prog, diags, target)
     check_element_out_arguments(prog, diags, target)
     check_configuration_names(prog, diags, target)
+    check_strucpp(prog, diags, target)
 
 
 # ------------------------------------------------------------------ names

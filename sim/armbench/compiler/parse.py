@@ -117,7 +117,7 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
     if not pf.tree.root_node.has_error:
         return
     hints = ConfigurationHints(pf)
-    # each node with the innermost CONFIGURATION or RESOURCE around it (for E0109's hints)
+    # each node with the innermost CONFIGURATION or RESOURCE around it (for E0111's hints)
     stack: list[tuple[ts.Node, str | None]] = [(pf.tree.root_node, None)]
     while stack:
         node, context = stack.pop()
@@ -126,7 +126,7 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
         if node.is_missing or node.type == "ERROR":
             hint = hints.hint(node, context)
             if hint is not None:
-                diags.error(pf.pos(node), "E0109", hint)
+                diags.error(pf.pos(node), "E0111", hint)
             elif node.type == "ERROR":
                 diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
             elif node.type == ";" and _after_end_struct(pf.data, node.start_byte):
