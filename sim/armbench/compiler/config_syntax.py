@@ -18,12 +18,20 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import tree_sitter as ts
 
-if TYPE_CHECKING:
-    from .parse import ParsedFile
+
+class ParsedFile(Protocol):
+    """What the hints read of parse.ParsedFile (a protocol: parse imports this module)."""
+
+    text: str
+    data: bytes
+    tree: ts.Tree
+    line_starts: list[int]
+
+    def text_of(self, node: ts.Node) -> str: ...
 
 CONFIGURATION = "configuration_declaration"
 RESOURCE = "resource_declaration"
