@@ -16,7 +16,7 @@ from armbench.compiler.targets import CODESYS, OPENPLC, Target
 
 # The nesting limits are MatIEC's: the constructs are checked for OpenPLC v3 and CODESYS, and
 # what STruC++ refuses in some of them (T#-1s, arrays of 3 and more dimensions, a FUNCTION
-# named Inc like OSCAT's; its rules' business, test_strucpp.py) is a warning, left out by
+# named Inc like OSCAT's; its rules' business, test_strucpp_verdicts.py) is a warning, left out by
 # matiec_view, so that the program is still checked and emitted.
 LIMITS_TARGET = Target(frozenset({OPENPLC, CODESYS}))
 

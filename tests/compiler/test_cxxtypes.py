@@ -1,5 +1,6 @@
 """The C++ type model of STruC++'s output (armbench.compiler.cxxtypes) and its reserved names,
-on the cases measured with the real STruC++ and g++ (test_strucpp.py runs whole programs)."""
+on the cases measured with the real STruC++ and g++ (test_strucpp_verdicts.py runs whole
+programs)."""
 
 from __future__ import annotations
 

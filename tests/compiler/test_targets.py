@@ -3,7 +3,7 @@ every target.
 
 The rules themselves are checked against the diagnostics corpus (test_diagnostics.py: one
 positive and one negative case per code, per target) and against the real tools: MatIEC
-(test_diagnostics.test_matiec_rejects), STruC++ (test_strucpp.py) and RuSTy
+(test_diagnostics.test_matiec_rejects), STruC++ (test_strucpp_verdicts.py) and RuSTy
 (tests/export/test_rusty.py).
 """
 

@@ -464,7 +464,7 @@ def test_features_xml_validates_and_round_trips(
 def v3_and_codesys_findings(path: Path) -> list[str]:
     """What `armbench check` reports but OpenPLC v4's: the features exercise what MatIEC and
     CODESYS take, and STruC++ refuses several of them (Type#Value, STRUCT initialisers,
-    repeated values; its rules' cases are in test_strucpp.py)."""
+    repeated values; its rules' cases are in test_strucpp_verdicts.py)."""
     return [d.render() for d in check_files([path]) if d.code not in STRUCPP_CODES]
 
 

@@ -93,7 +93,7 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
 
 Measured on STruC++ 0.6.1 (fb7980f) with its runtime headers and g++ 12 run as the v4 runtime
 runs it (`-std=c++17 -O1 -pipe -fPIC -DSTRUCPP_THREADED`); docs/strucpp-facts.md has the
-measurements, and `tests/compiler/test_strucpp.py` runs every corpus case of these codes
+measurements, and `tests/compiler/test_strucpp_verdicts.py` runs every corpus case of these codes
 through the real STruC++ (its verdict must be the checker's). The forms to write instead
 build in MatIEC, STruC++, RuSTy and CODESYS alike.
 

@@ -5,8 +5,8 @@ value than MatIEC (OpenPLC v3) computes.
 Needs: a CheckedProgram (after resolve; what an erroneous program leaves unresolved is skipped).
 Every rule was measured on STruC++ 0.6.1 (fb7980f) with its runtime headers and g++ 12 run as
 the v4 runtime runs it (-std=c++17 -O1 -DSTRUCPP_THREADED); the corpus cases
-(tests/corpus/diagnostics/, codes below) hold the evidence, and tests/compiler/test_strucpp.py
-runs them through the real STruC++ where STRUCPP names it. docs/strucpp-facts.md has the
+(tests/corpus/diagnostics/, codes below) hold the evidence, and
+tests/compiler/test_strucpp_verdicts.py runs them through the real STruC++ where STRUCPP names it. docs/strucpp-facts.md has the
 measurements, docs/diagnostics.md what to write instead.
 
 - E0109 CONTINUE: not in STruC++'s grammar.
@@ -47,7 +47,7 @@ from .symbols import CheckedProgram
 from .targets import OPENPLC, OPENPLC_V4, Target
 from .types import ArrayType, ElemType
 
-# the codes of these rules (the STruC++ cross-check, tests/compiler/test_strucpp.py, runs
+# the codes of these rules (the STruC++ cross-check, tests/compiler/test_strucpp_verdicts.py, runs
 # their corpus cases)
 STRUCPP_CODES = frozenset({"E0109", "E0110", "E0216", "E0217", "E0310", "E0311", "E0312",
                            "E0412", "E0413", "E0505", "E0506", "E0507", "E0508", "E0509",
