@@ -6,8 +6,9 @@ Needs: a CheckedProgram (after resolve; what an erroneous program leaves unresol
 Every rule was measured on STruC++ 0.6.1 (fb7980f) with its runtime headers and g++ 12 run as
 the v4 runtime runs it (-std=c++17 -O1 -DSTRUCPP_THREADED); the corpus cases
 (tests/corpus/diagnostics/, codes below) hold the evidence, and
-tests/compiler/test_strucpp_verdicts.py runs them through the real STruC++ where STRUCPP names it. docs/strucpp-facts.md has the
-measurements, docs/diagnostics.md what to write instead.
+tests/compiler/test_strucpp_verdicts.py runs them through the real STruC++ where STRUCPP
+names it. docs/strucpp-facts.md has the measurements, docs/diagnostics.md what to write
+instead.
 
 - E0109 CONTINUE: not in STruC++'s grammar.
 - E0110 literals its lexer has no token for: a sign after '#' (DINT#-8, T#-250ms), Type#Value
