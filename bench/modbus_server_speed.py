@@ -11,6 +11,9 @@ running), transactions per second of
 * the soft PLC serving the CODESYS variant's layout (``armbench serve --flavor codesys``:
   its Modbus TCP Server Device model, always in Python), where BatchX01.. are holding
   registers 800.. (plc_project/codesys/register-map.md),
+* the soft PLC answering as OpenPLC v4's Modbus plugin (``--flavor openplc-v4``: its model
+  of the plugin's segments, journal and pymodbus's framing, in Python; not v4 itself, which
+  serves from pymodbus's asyncio loop),
 * the OpenPLC v3 runtime running ``plc_project/openplc/arm_controller.st``, where the
   environment variable ``OPENPLC_RUN`` names a script that starts it (``OPENPLC_RUN FILE.st
   PORT``: builds FILE.st into the runtime, serves Modbus TCP on PORT, prints a line with
@@ -75,7 +78,7 @@ def serve_soft_plc(conn: Connection, fast: bool, cpus: set[int] | None,
                    flavor: str = "openplc") -> None:
     """Child process: the controller in a real-time soft PLC with its Modbus server, as
     `armbench serve` runs it, on the compiled or the Python request path (``flavor``
-    codesys: the CODESYS layout, Python only)."""
+    codesys: the CODESYS layout; openplc-v4: OpenPLC v4's plugin; Python only)."""
     import threading
 
     from armbench.softplc import ModbusServer, SoftPlc
@@ -230,6 +233,8 @@ def main(argv: list[str] | None = None) -> int:
             "soft PLC, Python path": stack.enter_context(soft_plc(False, server_cpus)),
             "soft PLC, CODESYS layout": stack.enter_context(
                 soft_plc(False, server_cpus, "codesys")),
+            "soft PLC, OpenPLC v4 model": stack.enter_context(
+                soft_plc(False, server_cpus, "openplc-v4")),
         }
         if a.no_openplc:
             print("OpenPLC runtime: skipped (--no-openplc)")

@@ -111,3 +111,21 @@ def plc_addresses(text: str) -> tuple[tuple[str, int], ...]:
             raise argparse.ArgumentTypeError(f"no host in {item!r} (want host:port)")
         out.append((host, port(port_text)))
     return tuple(out)
+
+
+# OpenPLC v4's Modbus server counts (armbench.softplc.openplc_v4.DEFAULT_COUNTS; not imported
+# here: the pytest plugin imports this module and must stay cheap)
+V4_COUNT_KEYS = ("qw_count", "mw_count", "md_count", "ml_count", "qx_bits", "mx_bits",
+                 "ix_bits", "iw_count")
+
+
+def v4_counts(text: str) -> dict[str, int]:
+    """``KEY=N,KEY=N``: OpenPLC v4 Modbus server counts (``qw_count=1024,mw_count=1024``)."""
+    counts: dict[str, int] = {}
+    for item in text.split(","):
+        key, sep, value = item.strip().partition("=")
+        if not sep or key not in V4_COUNT_KEYS:
+            raise argparse.ArgumentTypeError(f"{item.strip()!r}: want KEY=N with KEY one of "
+                                             f"{', '.join(V4_COUNT_KEYS)}")
+        counts[key] = _at_least(_int(value), 0)
+    return counts

@@ -220,23 +220,28 @@ def _finite(o: object) -> object:
 def cmd_serve(args: argparse.Namespace) -> int:
     from .softplc.loader import LoadedProgram, load_program
     from .softplc.modbus_server import DEFAULT_IDLE_TIMEOUT_S, DEFAULT_MAX_CLIENTS, ModbusServer
+    from .softplc.openplc_v4 import V4Settings
     from .softplc.serving import soft_plc
 
-    if args.web and args.flavor != "openplc":
+    if args.web and args.flavor == "codesys":
         print("armbench: error: --web: the live view speaks OpenPLC's register map only; "
               "leave out --flavor codesys to use it", file=sys.stderr)
+        return EXIT_USAGE
+    if args.v4_counts is not None and args.flavor != "openplc-v4":
+        print("armbench: error: --v4-counts: only with --flavor openplc-v4", file=sys.stderr)
         return EXIT_USAGE
     # Without files: the armbench library and the controller.
     checked = _checked(args) if args.files else None
     prog = LoadedProgram(_module_of(checked)) if checked is not None else \
         load_program(default_project().sources())
     try:
+        v4 = None if args.flavor != "openplc-v4" else V4Settings(args.v4_counts)
         plc, server = soft_plc(
-            prog, args.flavor, host=args.host, port=args.port,
+            prog, args.flavor, v4=v4, host=args.host, port=args.port,
             max_clients=DEFAULT_MAX_CLIENTS if args.max_clients is None else args.max_clients,
             idle_timeout_s=DEFAULT_IDLE_TIMEOUT_S if args.idle_timeout is None
             else args.idle_timeout)
-    except ValueError as exc:  # a variable the CODESYS layout cannot serve from the image
+    except ValueError as exc:  # a variable the CODESYS layout or v4's counts cannot serve
         print(f"armbench: error: --flavor {args.flavor}: {exc}", file=sys.stderr)
         return EXIT_FAIL
     # The server's warnings (non-loopback address, failed requests, in the server or the
@@ -252,6 +257,17 @@ def cmd_serve(args: argparse.Namespace) -> int:
         server_log.removeHandler(to_stderr)
 
 
+def _v4_layout(server: ModbusServer) -> str:
+    """The segments an OpenPLC v4 flavored server exposes, for the serve line."""
+    seg = getattr(server.device, "segments", None)
+    if seg is None:
+        return ""
+    return (f", answering as OpenPLC v4's Modbus plugin (holding registers 0..."
+            f"{seg.holding_registers - 1}: %QW {seg.qw_count}, %MW {seg.mw_count}, %MD "
+            f"{seg.md_count}, %ML {seg.ml_count}; coils {seg.coils}, discrete inputs "
+            f"{seg.ix_bits}, input registers {seg.iw_count}; exception 02 past them)")
+
+
 def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
            server: ModbusServer, checked: CheckedProgram | None) -> int:
     try:
@@ -263,7 +279,8 @@ def _serve(args: argparse.Namespace, prog: LoadedProgram, plc: SoftPlc,
     plc.run()
     plc.start()
     layout = "" if server.device is None else \
-        ", the CODESYS variant's register layout (plc_project/codesys/register-map.md)"
+        ", the CODESYS variant's register layout (plc_project/codesys/register-map.md)" \
+        if args.flavor == "codesys" else _v4_layout(server)
     print(f"serving Modbus TCP on {args.host}:{server.port}{layout}; tasks: "
           + ", ".join(f"{t.name} every {t.interval_ns / 1e6:g} ms" for t in prog.tasks),
           flush=True)
@@ -499,10 +516,20 @@ def make_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-clients", type=argtypes.positive_count, default=None, metavar="N",
                    help="Modbus connections open at once; when full, a new client replaces "
                    "the connection idle longest (default 64)")
-    s.add_argument("--flavor", choices=("openplc", "codesys"), default="openplc",
-                   help="the Modbus register layout served: OpenPLC's map (default) or the "
-                        "CODESYS variant's, as `armbench export` lays the program out for a "
-                        "CODESYS Modbus TCP Server Device")
+    s.add_argument("--flavor", "--plc-flavor", dest="flavor",
+                   choices=("openplc", "openplc-v4", "codesys"), default="openplc",
+                   help="the Modbus server served: OpenPLC v3's (default); OpenPLC v4's "
+                        "Modbus plugin (v3's map, each segment sized to the program, "
+                        "exception 02 outside, writes applied at the next scan: "
+                        "docs/modbus-parity.md); or the CODESYS variant's layout, as "
+                        "`armbench export` lays the program out for a CODESYS Modbus TCP "
+                        "Server Device")
+    s.add_argument("--v4-counts", type=argtypes.v4_counts, default=None,
+                   metavar="KEY=N[,KEY=N...]",
+                   help="with --flavor openplc-v4: the Modbus server counts set in v4's "
+                        "editor (qw_count, mw_count, md_count, ml_count, qx_bits, ix_bits, "
+                        "iw_count); default: those that keep every variable at its v3 "
+                        "address (for the controller qw_count=1024,mw_count=1024)")
     s.add_argument("--web", action="store_true",
                    help="also serve the live view over HTTP (the program's located variables "
                    "and a trace; for the arm controller the arm in 3-D and its commands); it "

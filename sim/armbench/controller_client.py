@@ -1358,8 +1358,11 @@ class MotionRecorder:
     def recording(self) -> bool:
         return self._thread is not None
 
-    def start(self) -> None:
-        """Start sampling; returns when the first sample is in (or after 5 s)."""
+    def start(self, timeout_s: float = 30.0) -> None:
+        """Start sampling; returns when the first sample is in. A motion started after this
+        has a sample before its first scan (the tests bracket its start with it), so a
+        recorder that has none after ``timeout_s`` raises HandshakeTimeout (it used to return
+        after 5 s all the same, and a loaded machine then recorded a move without its start)."""
         if self._thread is not None:
             raise RuntimeError("MotionRecorder.start: already recording")
         self._stop.clear()
@@ -1370,7 +1373,10 @@ class MotionRecorder:
         self._thread = threading.Thread(target=self._run, args=(ready,), daemon=True,
                                         name="motion-recorder")
         self._thread.start()
-        ready.wait(5.0)
+        if not ready.wait(timeout_s):
+            self.stop()  # raises what broke the connection, if anything did
+            raise HandshakeTimeout(f"motion recorder at {self.host}:{self.port}: no sample "
+                                   f"in {timeout_s:g} s")
 
     def _run(self, ready: threading.Event) -> None:
         try:

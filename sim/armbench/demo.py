@@ -35,6 +35,7 @@ from .registermap import SOURCES
 from .softplc.loader import load_program
 from .softplc.modbus_client import PlcClient
 from .softplc.modbus_server import ModbusServer
+from .softplc.openplc_v4 import V4Settings
 from .softplc.scan import SoftPlc, TaskStats
 from .softplc.serving import soft_plc
 
@@ -52,13 +53,13 @@ class RunningPlc:
 
 
 @contextmanager
-def serve_controller(host: str = "127.0.0.1", port: int = 0,
-                     flavor: str = "openplc") -> Iterator[RunningPlc]:
-    """Soft PLC (real-time thread) + Modbus server with the controller, serving ``flavor``'s
-    register layout (OpenPLC's map, or ``"codesys"``: the CODESYS variant's); stops both on
-    exit."""
+def serve_controller(host: str = "127.0.0.1", port: int = 0, flavor: str = "openplc",
+                     v4: V4Settings | None = None) -> Iterator[RunningPlc]:
+    """Soft PLC (real-time thread) + Modbus server with the controller, serving as
+    ``flavor``'s server does (OpenPLC v3's map; ``"openplc-v4"``: OpenPLC v4's Modbus plugin,
+    set up by ``v4``; ``"codesys"``: the CODESYS variant's layout); stops both on exit."""
     prog = load_program(list(SOURCES))
-    plc, server = soft_plc(prog, flavor, host=host, port=port)
+    plc, server = soft_plc(prog, flavor, v4=v4, host=host, port=port)
     server.start()
     try:
         plc.start()

@@ -175,8 +175,8 @@ def _registers(prog: CheckedProgram, inst: InstanceModel, flavor: Flavor) -> lis
 @dataclass(frozen=True)
 class _Placer:
     """Where the located variables of one POU (or of the CONFIGURATION) are on a flavor's
-    server: ``flavor.name`` "openplc", OpenPLC's map of the declared address; "codesys", the
-    CODESYS variant's place, keyed by (POU, name) upper case."""
+    server: OpenPLC's map of the declared address (``flavor.layout`` "openplc": OpenPLC v3
+    and v4), or the CODESYS variant's place, keyed by (POU, name) upper case."""
 
     flavor: Flavor
     pou: str | None  # None: the CONFIGURATION's globals
@@ -200,7 +200,7 @@ def _placements(prog: CheckedProgram, flavor: Flavor
                 ) -> dict[tuple[str, str], Placed] | None:
     """The CODESYS variant's placement of every located variable for ``flavor`` codesys
     (None for openplc: the declared addresses are the map)."""
-    if flavor == mm.OPENPLC:
+    if flavor.openplc_map:  # OpenPLC v3, and v4 set up to keep v3's map
         return None
     from .export.codesys import layout
 
@@ -461,6 +461,16 @@ def _example(regs: dict[str, Register]) -> list[str]:
     ]
 
 
+def _v4_counts() -> str:
+    """The OpenPLC v4 Modbus counts the controller's map needs (openplc_v4.required_counts)."""
+    from .softplc.openplc_v4 import required_counts
+
+    pm = program_map(list(SOURCES))
+    needed = required_counts([r.location for r in pm.registers]
+                             + [u.location for u in pm.unreachable])
+    return ",".join(f"{k}={v}" for k, v in needed.items())
+
+
 def render_markdown(regs: Sequence[Register]) -> str:
     out = [
         "# Controller register map",
@@ -471,6 +481,10 @@ def render_markdown(regs: Sequence[Register]) -> str:
         "(docs/matiec-facts.md); 32-bit values take two registers, most significant word first.",
         "The protocol below is the header of `Controller.st`, copied verbatim.",
         "`armbench.controller_client.ArmControllerClient` implements the client side.",
+        "",
+        "OpenPLC v4 serves these addresses only with its Modbus server's counts",
+        f"`{_v4_counts()}` set in its editor (left at the defaults, %MW and %MD move",
+        "down): [OpenPLC v3 and v4 side by side](modbus-parity.md#openplc-v3-and-v4-side-by-side).",
         "",
         "```text",
         *_header_sections(("SELF-DEFENCE", "HANDSHAKE", "COMMANDS", "MOTION", "RESULT CODES",

@@ -48,6 +48,12 @@ NOT_OURS = {
     "webserver/core/psm/main.py", "webserver/core/psm/psm.py",
     "bistable.txt", "edge_detection.txt", "pid_st.txt", "timer.txt", "background_installer.sh",
     "run-st.sh",  # the MatIEC run script a user provides (MATIEC_RUN)
+    # OpenPLC v4's runtime and pymodbus's, read for docs/modbus-parity.md's v4 rules
+    "core/src/drivers/plugins/python/modbus_slave/simple_modbus.py", "simple_modbus.py",
+    "shared/image_sizes.py", "image_sizes.py", "image_tables.h", "journal_buffer.c",
+    "journal_buffer.h", "mutex_manager.py", "modbus_slave.json", "test_modbus_slave.py",
+    "test_inputs.py", "register_message.py", "bit_message.py", "requesthandler.py",
+    "context.py", "framer/socket.py", "transport.py",
     # RuSTy's own files, in its checkout (docs/exports.md: building it)
     "Cargo.toml", "include/*.st", "libs/stdlib/iec61131-st/*.st", "scripts/build.sh",
     # a script's argument placeholder

@@ -1,6 +1,8 @@
 """--plc-flavor: a session that speaks the wrong register layout for the PLC it is given ends
 at once with one line naming the layout the PLC serves (not a time-out per test), the right
-one runs; and the Modbus suite passes against the soft PLC serving the CODESYS layout."""
+one runs; a session of OpenPLC v3 against a v4 PLC (or the other way round) ends the same way;
+and the Modbus suite passes against the soft PLC serving the CODESYS layout and as OpenPLC
+v4's Modbus plugin."""
 
 from __future__ import annotations
 
@@ -113,6 +115,43 @@ def test_codesys_session_against_an_openplc_controller(tmp_path: Path,
 
 
 @pytest.fixture(scope="module")
+def v4_controller() -> Iterator[str]:
+    with serve_controller(flavor="openplc-v4") as running:
+        yield f"{running.host}:{running.port}"
+
+
+def test_openplc_session_against_a_v4_controller(tmp_path: Path, v4_controller: str) -> None:
+    """The same map, another server: told apart by a request to unit id 2."""
+    (tmp_path / "test_suite.py").write_text(CONTROLLER_SUITE)
+    proc, _ = run_pytest(tmp_path, "test_suite.py", "--plc-address", v4_controller)
+    line = one_line_stop(proc, v4_controller)
+    assert line.endswith("runs the arm controller, but answers as OpenPLC v4's Modbus server, "
+                         "not OpenPLC v3's this session speaks (--plc-flavor openplc; a "
+                         "request to unit id 2 gets exception 0x0B): add --plc-flavor "
+                         "openplc-v4 !"), line
+
+
+def test_v4_session_against_an_openplc_controller(tmp_path: Path,
+                                                  openplc_controller: str) -> None:
+    (tmp_path / "test_suite.py").write_text(CONTROLLER_SUITE)
+    proc, _ = run_pytest(tmp_path, "test_suite.py", "--plc-address", openplc_controller,
+                         "--plc-flavor", "openplc-v4")
+    line = one_line_stop(proc, openplc_controller)
+    assert line.endswith("runs the arm controller, but answers as OpenPLC v3's Modbus server, "
+                         "not OpenPLC v4's this session speaks (--plc-flavor openplc-v4; a "
+                         "request to unit id 2 is answered): leave out --plc-flavor (or give "
+                         "--plc-flavor openplc) !"), line
+
+
+def test_v4_session_against_a_v4_controller_runs(tmp_path: Path, v4_controller: str) -> None:
+    (tmp_path / "test_suite.py").write_text(CONTROLLER_SUITE)
+    proc, _ = run_pytest(tmp_path, "test_suite.py", "--plc-address", v4_controller,
+                         "--plc-flavor", "openplc-v4")
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0 and "2 passed" in out, out
+
+
+@pytest.fixture(scope="module")
 def codesys_program(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, str]]:
     from armbench.harness.program import PlcProgram, serve_program
 
@@ -167,4 +206,25 @@ def test_the_modbus_suite_passes_against_the_codesys_layout() -> None:
     assert summary is not None and int(summary.group(1)) >= 60, out
     assert "skipped" not in out, out
     print(f"\ntests/modbus ({len(files)} files) --plc-flavor codesys: "
+          f"{summary.group(0)} in {took:.0f} s")
+
+
+# OpenPLC v4: its own rules (test_modbus_openplc_v4.py) and the part of the suite that writes
+# raw blocks, reconnects and runs ten clients at once (the motion files read the same blocks)
+V4_SUITE = ("test_modbus_openplc_v4.py", "test_handshake.py", "test_controller.py",
+            "test_disconnect.py", "test_soak.py")
+
+
+def test_the_modbus_suite_passes_as_openplc_v4() -> None:
+    """tests/modbus --plc-flavor openplc-v4 against the soft PLC answering as OpenPLC v4's
+    Modbus plugin (the whole suite: run it so by hand; docs/modbus-parity.md)."""
+    files = [str(REPO / "tests" / "modbus" / f) for f in V4_SUITE]
+    proc, took = run_pytest(REPO, *files, "--plc-flavor", "openplc-v4",
+                            env={"ARMBENCH_SOAK_SECONDS": "3"}, timeout_s=600.0)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out
+    summary = re.search(r"(\d+) passed", out)
+    assert summary is not None and int(summary.group(1)) >= 60, out
+    assert "skipped" not in out, out
+    print(f"\ntests/modbus ({len(files)} files) --plc-flavor openplc-v4: "
           f"{summary.group(0)} in {took:.0f} s")

@@ -218,7 +218,8 @@ def test_bad_calibration_is_rejected(plc: ArmControllerClient, joint: int, cal: 
 
 def test_batch_fk_of_ik_over_1000_points(plc: ArmControllerClient) -> None:
     targets = _targets(1000)
-    scans_before = plc.status().scan_count
+    plc.open()  # the mailbox claim (a Hello) is not one of the batch's commands
+    answered_before = plc.status().commands_answered
     results = plc.batch_roundtrip(targets)
     assert len(results) == len(targets)
     assert all(r.error_id == 0 for r in results), [r for r in results if r.error_id][:3]
@@ -227,9 +228,12 @@ def test_batch_fk_of_ik_over_1000_points(plc: ArmControllerClient) -> None:
     echo = np.array([r.echo_mm for r in results])
     assert np.max(np.linalg.norm(ref - want, axis=1)) <= 0.05
     assert np.max(np.linalg.norm(echo - want, axis=1)) <= 0.05
-    # each SolveBatch is one command: about one scan per 32 points, not one per point
+    # each SolveBatch is one command of 32 points, not one per point: counted in the PLC's
+    # answered commands (ReserveBatch, the SolveBatches, ReleaseBatch). Counting scans
+    # instead measured the client too: on a loaded machine it writes and reads slower while
+    # the PLC scans on (123 scans for 32 batches, a run against the real v3 runtime)
     batches = math.ceil(len(targets) / plc.batch_max)
-    assert plc.status().scan_count - scans_before < 3 * batches + 5
+    assert plc.status().commands_answered - answered_before == batches + 2
 
 
 def test_batch_matches_single_moves(plc: ArmControllerClient) -> None:

@@ -319,7 +319,7 @@ def test_every_output_heals_within_a_scan(plc: ArmControllerClient) -> None:
                if _spoof(plc, n, [0x7FC0 if i == 0 else 0x1234
                                   for i in range(plc.registers[n].count)])]
     # OpenPLC: every output is a holding register or coil a client can write; CODESYS: none is
-    assert len(spoofed) == (len(names) if plc.flavor.name == "openplc" else 0)
+    assert len(spoofed) == (len(names) if plc.flavor.openplc_map else 0)
     plc.wait_scans(2)
     after = _read_outputs(plc, names)
     diff = [n for n in names if n not in moving and after[n] != before[n]]
@@ -337,7 +337,7 @@ def test_spoofed_state_cannot_wedge_or_replay(plc: ArmControllerClient) -> None:
     # (the CODESYS layout has no function that writes them: nothing to spoof there)
     for name, value in (("CTLSTATE", 1), ("BUSYMAILBOX", plc.mailbox),
                         (f"MBX{plc.mailbox:02d}ACKSEQ", 0)):
-        assert _spoof(plc, name, regs[name].encode(value)) == (plc.flavor.name == "openplc")
+        assert _spoof(plc, name, regs[name].encode(value)) == plc.flavor.openplc_map
     plc.wait_scans(SCANS)
     st = plc.status()
     assert st.state == 0 and st.busy_mailbox == 0

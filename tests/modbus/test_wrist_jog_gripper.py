@@ -125,6 +125,17 @@ class ChannelRecorder:
         self._stop.set()
         self._thread.join(5.0)
 
+    def wait_past(self, scan: int, timeout_s: float = 30.0) -> None:
+        """Return once a sample of a scan after ``scan`` is in: the record then holds the
+        standstill that follows, however slowly a loaded machine lets this recorder read
+        (a fixed 0.1 s left it with no sample after the dead-man fired, under load)."""
+        deadline = time.monotonic() + timeout_s
+        while not (self.samples and self.samples[-1].scan > scan):
+            if not self._thread.is_alive() or time.monotonic() > deadline:
+                raise AssertionError(f"the recorder sampled no scan after {scan} in "
+                                     f"{timeout_s:g} s")
+            time.sleep(0.005)
+
     def _run(self) -> None:
         a, b = self.a, self.b
         with PlcClient(*self.address) as c:
@@ -196,10 +207,13 @@ def go_to_start(plc: ArmControllerClient, q: tuple[float, ...] = Q_START) -> np.
 
 
 def keep_alive(plc: ArmControllerClient, pitch: float, roll: float, seconds: float) -> None:
-    t_end = time.monotonic() + seconds
-    while time.monotonic() < t_end:
+    """Jog updates until the PLC has scanned ``seconds`` of its time: the jog moves in scans,
+    and a loaded machine runs fewer of a soft PLC's scans per second of wall clock (1.2 s
+    of wall clock gave 14 instead of 22 degrees of turn then)."""
+    end = (plc.scan_count() + round(seconds / DT)) & 0xFFFFFFFF
+    while 0 < (end - plc.scan_count()) & 0xFFFFFFFF < 0x80000000:  # end not reached
         assert plc.jog_wrist_update(pitch, roll).error_id == ERR_OK
-        time.sleep(0.05)
+        time.sleep(0.02)
 
 
 def test_tip_fixed_wrist_jog_keeps_the_tip(plc: ArmControllerClient,
@@ -212,8 +226,9 @@ def test_tip_fixed_wrist_jog_keeps_the_tip(plc: ArmControllerClient,
         assert m.kind == KIND_JOG_WRIST and m.busy
         keep_alive(plc, rate, 0.0, 1.2)
         assert plc.jog_stop().error_id == ERR_OK
-        assert plc.wait_motion().state == "done"
-        time.sleep(0.1)
+        done = plc.wait_motion()
+        assert done.state == "done"
+        rec.wait_past(done.sample.scan + 2)
     samples = rec.samples
     drift = max(float(np.linalg.norm(fk(s.out)[1][:3, 3] - tip0)) for s in samples)
     print(f"\nworst tip drift during a tip-fixed wrist jog: {drift * 1000:.1f} um")
@@ -240,7 +255,7 @@ def test_dead_man_brakes_a_silent_wrist_jog(plc: ArmControllerClient,
         assert plc.jog_wrist_start(rate, 0.0, rate, acc, flange_fixed=True).error_id == ERR_OK
         started = plc.motion().scan
         outcome = plc.wait_motion(timeout_s=10.0)  # the client says nothing more
-        time.sleep(0.1)
+        rec.wait_past(outcome.sample.scan + 2)
     assert outcome.state == "error" and outcome.error_id == ERR_JOG_TIMEOUT
     s = [x for x in rec.samples if x.scan >= started]
     # the arm joints stand (flange-fixed), the wrist pitch moved
@@ -292,8 +307,9 @@ def test_wrist_jog_ownership_takeover_and_bad_writes(plc: ArmControllerClient,
         # Stop from anyone ends it
         assert plc.stop().error_id == ERR_OK
         assert other.wait_motion().state == "superseded"
-        assert plc.wait_motion().state == "done"
-        time.sleep(0.1)
+        done = plc.wait_motion()
+        assert done.state == "done"
+        rec.wait_past(done.sample.scan + 2)
     roll_speeds = [abs(b.out[4] - a.out[4]) / DT for a, b, _ in rec.triples()]
     assert max(roll_speeds) <= 30.0 * (1 + 1e-3) + 0.01  # the default max speed held
     assert all(math.isfinite(v) for x in rec.samples for v in x.out)
@@ -368,7 +384,7 @@ def test_gripper_channel(plc: ArmControllerClient, plc_address: tuple[str, int])
     # registers, which no function code writes)
     before, word = plc.gripper(), plc.channel_words()[5]
     first = plc.registers["GRIPPERCALZERODEG"]
-    if plc.flavor.name == "openplc":
+    if plc.flavor.openplc_map:
         with PlcClient(*plc_address) as raw:
             raw.write_registers(first.address, first.flavor.encode("REAL", math.nan) * 12)
     else:

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from ..compiler.symbols import CheckedProgram, VarSym
     from ..softplc.codesys_device import CodesysDevice
     from ..softplc.modbus_client import PlcClient
+    from ..softplc.openplc_v4 import OpenPlcV4Device
     from ..softplc.scan import SoftPlc
 
 Value = bool | int | float
@@ -150,7 +151,7 @@ class Signature:
         """The PLC shows the initial value over Modbus: always under OpenPLC (the variable is
         the register); under CODESYS only in the %Q area (the program assigns it), as the
         holding registers' data overwrites the %I variables, initial values and all."""
-        return not (self.variable.flavor == mm.CODESYS and self.variable.writable)
+        return self.variable.flavor.openplc_map or not self.variable.writable
 
 
 @dataclass(frozen=True)
@@ -263,7 +264,7 @@ class PlcProgram:
             return var
         if key in self.unreachable:
             server = ("OpenPLC does not serve over Modbus (it serves %IX %QX %IW %QW %MW %MD "
-                      "%ML)" if self.flavor == mm.OPENPLC else
+                      "%ML)" if self.flavor.openplc_map else
                       f"the {self.flavor.title} layout does not serve over Modbus (it places "
                       "only the programs' own located variables)")
             raise UnknownVariable(f"{name} is located at {self.unreachable[key]}, which "
@@ -554,7 +555,7 @@ def _lambda_source(fn: Callable[..., object]) -> str | None:
 
 def _read_only(var: Variable) -> str:
     """Why ``var`` cannot be written over Modbus, and what writes it."""
-    if var.flavor == mm.OPENPLC:
+    if var.flavor.openplc_map:
         return (f"{var.name} at {var.location} is an input: Modbus reads it, the PLC's I/O "
                 "writes it (on the soft PLC, ProgramPlc.set_input writes it)")
     kind = "a discrete input" if var.table == "discrete" else "an input register"
@@ -615,7 +616,7 @@ def other_flavor(client: PlcClient, program: PlcProgram,
     # own flavor has had the whole timeout already.
     look_s = min(timeout_s, max(0.5, 20 * program.scan_interval_ns / 1e9))
     for fl in mm.FLAVORS.values():
-        if fl == program.flavor:
+        if fl.layout == program.flavor.layout:  # the same addresses tell nothing apart
             continue
         other = program.with_flavor(fl)
         sig = other.signature
@@ -627,6 +628,22 @@ def other_flavor(client: PlcClient, program: PlcProgram,
         except (ModbusError, ModbusIoError):
             continue
     return None
+
+
+def openplc_generation(host: str, port: int, timeout_s: float = 3.0) -> str | None:
+    """Which OpenPLC's Modbus server answers at host:port, told by a read of holding register
+    0 for unit id 2: "openplc" when it is answered (v3 ignores the unit id), "openplc-v4" when
+    it gets exception 0x0B (v4's plugin serves unit id 1 only); None for anything else."""
+    from ..softplc.modbus_client import ModbusError, ModbusIoError, PlcClient
+
+    try:
+        with PlcClient(host, port, timeout_s=timeout_s, device_id=2) as client:
+            client.read_holding_registers(0, 1)
+    except ModbusError as exc:
+        return "openplc-v4" if exc.code == 0x0B else None
+    except ModbusIoError:
+        return None
+    return "openplc"
 
 
 def _show(value: Value, like: Value | None = None) -> str:
@@ -648,7 +665,8 @@ class ProgramPlc:
     port: int
     program: PlcProgram
     soft: SoftPlc | None = None
-    device: CodesysDevice | None = None  # the soft PLC's Modbus device (CODESYS layout)
+    # the soft PLC's Modbus device: CODESYS layout, or OpenPLC v4's plugin
+    device: CodesysDevice | OpenPlcV4Device | None = None
     _clients: list[PlcVariables] = field(default_factory=list, repr=False)
 
     @property
@@ -699,7 +717,11 @@ class ProgramPlc:
                                "over Modbus (plc_vars[name] = value)")
         if var.table in ("coil", "discrete") and not isinstance(value, bool):
             raise TypeError(f"{var.name} is BOOL: give True or False, not {value!r}")
-        if self.device is not None:
+        from ..softplc.codesys_device import CodesysDevice
+
+        # OpenPLC v4's I/O plugins write inputs through its journal, which the next scan
+        # drains: the same as this write under the scan lock, between two scans
+        if isinstance(self.device, CodesysDevice):
             if var.table == "coil":
                 self.device.store_coil(var.address, bool(value))
             else:

@@ -18,8 +18,8 @@ Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in
   ``--plc-wait-timeout S`` or ``plc_wait_timeout = S`` in the ini file for every wait).
 - ``modbus``: a plain :class:`~armbench.softplc.modbus_client.PlcClient` connected to it.
 - ``soft_plc``: a factory, ``soft_plc("a.st", library=False)``, for tests that start soft PLCs
-  of their own (``flavor="codesys"``: serving the CODESYS layout); each is stopped at the end
-  of the test.
+  of their own (``flavor="codesys"``: serving the CODESYS layout; ``flavor="openplc-v4"``:
+  answering as OpenPLC v4's Modbus plugin); each is stopped at the end of the test.
 
 The arm controller (``plc_project/Controller.st``):
 
@@ -42,16 +42,20 @@ The arm controller (``plc_project/Controller.st``):
   ``armbench sweep: N points in T s = R points/s on W workers`` at the end, T being the time
   from the first sweep test's start to the last one's end (PLC start-up not included).
 
-``--plc-flavor openplc|codesys`` (or ``plc_flavor`` in the ini file; ``plc_flavor`` is also a
-session fixture) says which register layout the PLC serves: OpenPLC's map (the default) or the
-CODESYS variant's (plc_project/codesys/register-map.md: what the program writes in input
-registers, what clients write in holding registers and coils, 32-bit values least significant
-word first). The soft PLCs the fixtures start serve that layout; every client speaks it.
+``--plc-flavor openplc|openplc-v4|codesys`` (or ``plc_flavor`` in the ini file; ``plc_flavor``
+is also a session fixture) says which Modbus server the PLC is: OpenPLC v3's (the default),
+OpenPLC v4's (the same map when its Modbus segments are set up as docs/modbus-parity.md says,
+its own protocol rules: exception 02 outside the segments sized to the program, writes
+applied at the next scan) or a CODESYS PLC serving the CODESYS variant's layout
+(plc_project/codesys/register-map.md: what the program writes in input registers, what
+clients write in holding registers and coils, 32-bit values least significant word first).
+The soft PLCs the fixtures start serve that way; every client speaks it.
 
 A real PLC that does not answer Modbus, or does not run the program the fixtures expect (the
 controller: it does not answer a Hello command; your program: see ``plc_program``), ends the
 session with one line naming host:port and the reason (pytest exit code 4); when it runs it in
-the other flavor's layout, the line says so and names the option that fits.
+another flavor's layout, or is the other OpenPLC (v3 answers a request to unit id 2, v4 refuses
+it with exception 0x0B), the line says so and names the option that fits.
 """
 
 from __future__ import annotations
@@ -75,7 +79,9 @@ from .. import argtypes
 # armbench.harness.program.DEFAULT_WAIT_TIMEOUT_S, not imported: the plugin's import stays cheap
 DEFAULT_WAIT_TIMEOUT_S = 5.0
 
-FLAVORS = ("openplc", "codesys")  # armbench.softplc.modbus_map.FLAVORS, not imported: cheap
+# armbench.softplc.modbus_map.FLAVORS (name: layout), not imported: cheap
+FLAVORS = ("openplc", "openplc-v4", "codesys")
+LAYOUTS = {"openplc": "openplc", "openplc-v4": "openplc", "codesys": "codesys"}
 
 if TYPE_CHECKING:  # imported by the fixtures that need them: see the module docstring
     from ..controller_client import ArmControllerClient, MotionRecorder
@@ -100,9 +106,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--plc-share", action="store_true",
                     help="let more xdist workers than --plc-address entries share the PLCs")
     group.addoption("--plc-flavor", choices=FLAVORS, default=None,
-                    help="the PLC's Modbus register layout: openplc (OpenPLC's map, the "
-                         "default) or codesys (the CODESYS variant's, "
-                         "plc_project/codesys/register-map.md); the soft PLCs serve it")
+                    help="the PLC's Modbus server: openplc (OpenPLC v3, the default), "
+                         "openplc-v4 (OpenPLC v4's Modbus plugin: v3's map, segments sized "
+                         "to the program, docs/modbus-parity.md) or codesys (the CODESYS "
+                         "variant's layout, plc_project/codesys/register-map.md); the soft "
+                         "PLCs serve it")
     group.addoption("--plc-program", nargs="+", action="extend", default=None,
                     metavar="FILE.st",
                     help="your ST program (files or folders) for the plc_program, "
@@ -126,7 +134,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="progress bar of the points tests report with record_points "
                          "(auto: when stderr is a terminal)")
     parser.addini("plc_flavor", default="",
-                  help="the PLC's Modbus register layout, openplc or codesys (--plc-flavor)")
+                  help="the PLC's Modbus server, openplc, openplc-v4 or codesys "
+                       "(--plc-flavor)")
     parser.addini("plc_program", type="paths", default=[],
                   help="your ST program's files, relative to this ini file (--plc-program)")
     parser.addini("plc_no_library", type="bool", default=False,
@@ -162,7 +171,8 @@ def flavor_name(config: pytest.Config) -> str:
         return given
     ini = str(config.getini("plc_flavor")).strip().lower()
     if ini and ini not in FLAVORS:
-        raise pytest.UsageError(f"plc_flavor (ini) is {ini!r}: choose {' or '.join(FLAVORS)}")
+        raise pytest.UsageError(f"plc_flavor (ini) is {ini!r}: choose "
+                                f"{', '.join(FLAVORS[:-1])} or {FLAVORS[-1]}")
     return ini or "openplc"
 
 
@@ -328,10 +338,12 @@ def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
     from ..softplc.modbus_map import CODESYS
 
     reason = _hello(host, port, timeout_s, flavor)
-    if reason is None or reason.startswith("has no free mailbox"):
+    if reason is None:
+        return _other_openplc(host, port, timeout_s, flavor, "the arm controller")
+    if reason.startswith("has no free mailbox"):
         return reason
     for other in FLAVORS:
-        if other != flavor and _counts_scans(host, port, timeout_s, other) \
+        if LAYOUTS[other] != LAYOUTS[flavor] and _counts_scans(host, port, timeout_s, other) \
                 and _hello(host, port, timeout_s, other) is None:
             layout = "the CODESYS variant's layout" if other == CODESYS.name else \
                 "OpenPLC's register map"
@@ -342,6 +354,24 @@ def controller_probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S,
             else "upload plc_project/openplc/arm_controller.st")
     return (f"answers Modbus but does not run the arm controller: no answer to a Hello "
             f"command within {timeout_s:g} s ({load})")
+
+
+def _other_openplc(host: str, port: int, timeout_s: float, flavor: str,
+                   what: str) -> str | None:
+    """None unless the PLC, running ``what`` in OpenPLC's map, is the other OpenPLC than
+    ``flavor`` says (v3 for openplc-v4, v4 for openplc): then why, in one line."""
+    if LAYOUTS[flavor] != "openplc":
+        return None
+    from .program import openplc_generation
+
+    found = openplc_generation(host, port, timeout_s)
+    if found is None or found == flavor:
+        return None
+    name = {"openplc": "OpenPLC v3's", "openplc-v4": "OpenPLC v4's"}
+    return (f"runs {what}, but answers as {name[found]} Modbus server, not "
+            f"{name[flavor]} this session speaks (--plc-flavor {flavor}; a request to unit id 2 "
+            f"{'is answered' if found == 'openplc' else 'gets exception 0x0B'}): "
+            f"{_flavor_hint(found)}")
 
 
 def _counts_scans(host: str, port: int, timeout_s: float, flavor: str,
@@ -422,9 +452,9 @@ def _real_plc(request: pytest.FixtureRequest) -> tuple[str, int] | None:
 
 @pytest.fixture(scope="session")
 def plc_flavor(request: pytest.FixtureRequest) -> str:
-    """The register layout of the PLC under test, "openplc" or "codesys" (``--plc-flavor``,
-    ``plc_flavor`` in the ini file): give it to the clients a test makes itself,
-    ``ArmControllerClient(modbus, flavor=plc_flavor)``."""
+    """The Modbus server of the PLC under test, "openplc", "openplc-v4" or "codesys"
+    (``--plc-flavor``, ``plc_flavor`` in the ini file): give it to the clients a test makes
+    itself, ``ArmControllerClient(modbus, flavor=plc_flavor)``."""
     return flavor_name(request.config)
 
 
@@ -571,6 +601,9 @@ def _real_program_plc(request: pytest.FixtureRequest,
                               f"{_flavor_hint(layout.name)}")
     except ModbusIoError as exc:
         reason = f"answers Modbus, but reading {plc_program.name}'s variables fails ({exc})"
+    if reason is None:
+        reason = _other_openplc(host, port, PROBE_TIMEOUT_S, plc_program.flavor.name,
+                                plc_program.name)
     if reason is not None:
         pytest.exit(f"armbench: the PLC at {host}:{port} ({option}) {reason}",
                     returncode=pytest.ExitCode.USAGE_ERROR)
@@ -646,8 +679,8 @@ def plc_vars(request: pytest.FixtureRequest, program_plc: ProgramPlc) -> Iterato
 @dataclass
 class SoftPlcFactory:
     """``soft_plc(*files, library=True, signature=None, scan_counter=None,
-    flavor="openplc")``: compile the files and start a soft PLC running them, serving
-    ``flavor``'s register layout; returns its ProgramPlc."""
+    flavor="openplc")``: compile the files and start a soft PLC running them, serving as
+    ``flavor``'s Modbus server does; returns its ProgramPlc."""
 
     stack: contextlib.ExitStack[bool | None] = field(default_factory=contextlib.ExitStack)
 

@@ -73,6 +73,12 @@ class PlcClient:
             response = request()
         except ModbusException as exc:
             raise ModbusIoError(f"{self.host}:{self.port}: function {function}: {exc}") from exc
+        except OSError as exc:
+            # pymodbus's sync client lets a reset connection (ECONNRESET from recv) through
+            # as it is; it is a broken connection like any other, which callers reconnect
+            # after (OpenPLC v3's accept race resets them: a soak client died of it)
+            raise ModbusIoError(f"{self.host}:{self.port}: function {function}: "
+                                f"connection broken ({exc})") from exc
         if response.isError():
             raise ModbusError(function, response.exception_code)
         return response

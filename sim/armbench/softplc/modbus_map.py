@@ -143,11 +143,20 @@ def struct_code(st_type: str) -> str | None:
 @dataclass(frozen=True)
 class Flavor:
     """A kind of Modbus server the bench speaks to: ``name`` as the options spell it
-    (``--plc-flavor``), ``title`` for messages, and the order of a wide value's words."""
+    (``--plc-flavor``), ``title`` for messages, the order of a wide value's words, and the
+    ``layout`` of its registers: "openplc" (v3's map of the declared addresses, which OpenPLC
+    v4 keeps when its segments are set up as docs/modbus-parity.md says) or "codesys" (the
+    CODESYS variant's)."""
 
     name: str
     title: str
     lsw_first: bool
+    layout: str = "openplc"
+
+    @property
+    def openplc_map(self) -> bool:
+        """True when variables are where OpenPLC's map puts their declared addresses."""
+        return self.layout == OPENPLC_LAYOUT
 
     def _endian(self) -> str:
         return "<" if self.lsw_first else ">"
@@ -173,9 +182,13 @@ def _require(st_type: str) -> str:
     return code
 
 
+OPENPLC_LAYOUT: Final = "openplc"
 OPENPLC: Final = Flavor("openplc", "OpenPLC", lsw_first=False)
-CODESYS: Final = Flavor("codesys", "CODESYS", lsw_first=True)
-FLAVORS: Final = {f.name: f for f in (OPENPLC, CODESYS)}
+# OpenPLC v4's Modbus plugin: v3's map and word order, its own protocol rules
+# (armbench.softplc.openplc_v4)
+OPENPLC_V4: Final = Flavor("openplc-v4", "OpenPLC v4", lsw_first=False)
+CODESYS: Final = Flavor("codesys", "CODESYS", lsw_first=True, layout="codesys")
+FLAVORS: Final = {f.name: f for f in (OPENPLC, OPENPLC_V4, CODESYS)}
 
 
 def flavor(name: str | Flavor) -> Flavor:
@@ -185,5 +198,6 @@ def flavor(name: str | Flavor) -> Flavor:
         return name
     found = FLAVORS.get(name.lower())
     if found is None:
-        raise ValueError(f"unknown Modbus flavor {name!r}: choose {' or '.join(FLAVORS)}")
+        raise ValueError(f"unknown Modbus flavor {name!r}: choose "
+                         f"{', '.join(list(FLAVORS)[:-1])} or {list(FLAVORS)[-1]}")
     return found

@@ -64,8 +64,9 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import Final, Protocol
 
+from .codesys_device import CodesysDevice
 from .fastpath import FastConnection, ImageLock, ScanLock, new_scan_lock
 from .image import MD_OFFSET, ML_OFFSET, QW_OFFSET, ProcessImage
 from .modbus_map import (
@@ -79,9 +80,7 @@ from .modbus_map import (
     MD_BASE,
     ML_BASE,
 )
-
-if TYPE_CHECKING:
-    from .codesys_device import CodesysDevice
+from .openplc_v4 import OpenPlcV4Device
 
 _log = logging.getLogger(__name__)
 
@@ -436,7 +435,10 @@ class ModbusServer:
 
     ``device``: serve the CODESYS layout instead of OpenPLC's map
     (:class:`~armbench.softplc.codesys_device.CodesysDevice`, which the soft PLC must also
-    get, to copy its data in and out of the image each scan); always in Python.
+    get, to copy its data in and out of the image each scan), or answer as OpenPLC v4's
+    Modbus plugin (:class:`~armbench.softplc.openplc_v4.OpenPlcV4Device`, which also reads
+    each connection's bytes as pymodbus does, and whose journal the soft PLC drains each
+    scan); always in Python.
     """
 
     def __init__(
@@ -449,7 +451,7 @@ class ModbusServer:
         max_clients: int = DEFAULT_MAX_CLIENTS,
         idle_timeout_s: float | None = DEFAULT_IDLE_TIMEOUT_S,
         fast_path: bool = True,
-        device: CodesysDevice | None = None,
+        device: CodesysDevice | OpenPlcV4Device | None = None,
     ) -> None:
         if max_clients < 1:
             raise ValueError(f"max_clients must be at least 1, not {max_clients}")
@@ -464,7 +466,8 @@ class ModbusServer:
             lock, fast_path = device.lock, False
         if lock is None:
             lock = new_scan_lock() if fast_path else threading.Lock()
-        self.handler: RequestHandler = device if device is not None else PduHandler(image, lock)
+        self.handler: RequestHandler = (device if isinstance(device, CodesysDevice)
+                                        else PduHandler(image, lock))
         self.device = device
         self.image = image
         self._image_lock = lock if fast_path and isinstance(lock, ImageLock) else None
@@ -660,6 +663,12 @@ class ModbusServer:
                 # Returns when the peer closes, the framing is lost or the socket fails (an
                 # error code, no exception: there is nothing to answer in any of these).
                 client.fast.serve(client.sock.fileno())
+            elif isinstance(self.device, OpenPlcV4Device):
+                # OpenPLC v4: pymodbus's own way of reading the stream (openplc_v4.py)
+                def answered() -> None:
+                    client.last_request = time.monotonic()
+
+                self.device.serve(client.sock, answered)
             else:
                 self._serve_frames(client)
         except OSError:
