@@ -5,7 +5,7 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 # the docs site's build test needs the docs extra
 .venv/bin/python -c "import mkdocs, latex2mathml" 2>/dev/null \
-  || .venv/bin/python -m pip install -q -e ".[docs]" -c tests/packaging/constraints-current.txt
+  || .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[docs]" -c tests/packaging/constraints-current.txt
 .venv/bin/ruff check sim tests bench
 .venv/bin/mypy sim
 .venv/bin/armbench check st/

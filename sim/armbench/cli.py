@@ -25,7 +25,7 @@ from .compiler.diagnostics import Diagnostic, Diagnostics
 from .compiler.driver import Analysis, analyse_program, expand
 from .compiler.emit_c import emit
 from .compiler.symbols import CheckedProgram
-from .compiler.targets import CODESYS_ONLY, OPENPLC_ONLY, TARGET_NAMES, Target
+from .compiler.targets import CODESYS_ONLY, SOFT_PLC, TARGET_NAMES, Target
 from .compiler.uses import Library
 from .demo_options import add_demo_arguments, add_follow_arguments
 from .faults import PlcFault
@@ -81,11 +81,12 @@ def _select(args: argparse.Namespace) -> LibrarySelection:
     return select_library(_given(args.files), not args.no_library)
 
 
-def _analyse(args: argparse.Namespace, target: Target = OPENPLC_ONLY
+def _analyse(args: argparse.Namespace, target: Target = SOFT_PLC
              ) -> tuple[LibrarySelection, Analysis]:
     """The given files checked with what they use of the library, for ``target`` (build, run
-    and serve compile what OpenPLC runs); a note (stderr) names the program's declarations
-    that library declarations it uses get instead of their own."""
+    and serve compile what OpenPLC runs, for the soft PLC: what only OpenPLC's upload refuses,
+    the names Config0 and Res0, is a warning there); a note (stderr) names the program's
+    declarations that library declarations it uses get instead of their own."""
     selection = _select(args)
     analysis = analyse_program(selection.given, selection.library, target)
     note = analysis.library.note()
@@ -95,9 +96,13 @@ def _analyse(args: argparse.Namespace, target: Target = OPENPLC_ONLY
 
 
 def _checked(args: argparse.Namespace) -> CheckedProgram:
+    """The program compiled for the soft PLC; its warnings on stderr, one line each."""
     _, analysis = _analyse(args)
     if analysis.program is None:
         raise CompileFailed(analysis.diagnostics.sorted())
+    for d in analysis.diagnostics.sorted():
+        if d.severity == "warning":
+            print(d.render(), file=sys.stderr)
     return analysis.program
 
 
@@ -430,6 +435,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         else:
             exp = generate(name=args.name)
         out = Path(args.out)
+    for warning in exp.warnings:
+        print(f"armbench export: warning: {warning}", file=sys.stderr)
     if args.check:
         stale = exp.stale(out)
         for path, why in stale:
@@ -476,9 +483,12 @@ def make_parser() -> argparse.ArgumentParser:
                    "library and plc_project/Controller.st)")
     _library_option(c)
     c.add_argument("--target", choices=TARGET_NAMES, default="all",
-                   help="the dialects to check for: openplc (MatIEC), codesys (IEC 61131-3 "
-                   "3rd edition, CODESYS, TwinCAT, RuSTy) or all (default); what only the "
-                   "others refuse is a warning")
+                   help="the dialects to check for: openplc (OpenPLC v3's MatIEC and its "
+                   "upload, which needs CONFIGURATION Config0 and RESOURCE Res0), openplc-v4 "
+                   "(OpenPLC v4's STruC++), codesys (IEC 61131-3 3rd edition, CODESYS, "
+                   "TwinCAT, RuSTy) or all (default); what only the others refuse is a "
+                   "warning. build, run and serve compile for the soft PLC: openplc's rules, "
+                   "with the upload's names a warning")
     c.set_defaults(func=cmd_check)
     b = sub.add_parser("build", help="compile to a cached shared library")
     b.add_argument("files", nargs="+")

@@ -143,3 +143,44 @@ def test_serve_the_codesys_layout(prog: Path) -> None:
 def test_serve_web_speaks_openplc_only(prog: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["serve", str(prog), "--web", "--flavor", "codesys", "--port", "0"]) == 2
     assert "--web: the live view speaks OpenPLC's register map only" in capsys.readouterr().err
+
+
+def test_configuration_names_are_the_openplc_uploads_rule(
+        prog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Config0 and Res0 are what OpenPLC's upload needs, not what the bench or CODESYS needs:
+    an error for check --target openplc and all and for export (the OpenPLC upload), a
+    warning for --target codesys and for build and run, which compile for the soft PLC and
+    run the program as it is."""
+    plant = tmp_path / "plant.st"
+    plant.write_text(prog.read_text().replace("CONFIGURATION Config0", "CONFIGURATION Plant")
+                     .replace("RESOURCE Res0", "RESOURCE Cpu"))
+    named = ("plant.st:15:1: {}[E0602]: CONFIGURATION 'Plant': OpenPLC's upload needs it to be "
+             "named Config0{}", "plant.st:16:3: {}[E0602]: RESOURCE 'Cpu': OpenPLC's upload "
+             "needs it to be named Res0{}")
+
+    def said(text: str, severity: str, why: str = "") -> bool:
+        return all(line.format(severity, why) in text for line in named)
+
+    for target, rc, severity in (("all", 1, "error"), ("openplc", 1, "error"),
+                                 ("codesys", 0, "warning")):
+        assert main(["check", "--target", target, str(plant)]) == rc
+        out, err = capsys.readouterr()
+        assert said(out, severity, " (CODESYS takes any name)" if rc == 0 else ""), out
+        assert len(out.strip().splitlines()) == 2, out
+    soft = " (the bench's soft PLC runs it as it is)"
+    assert main(["run", str(plant), "--cycles", "3", "--dump"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["inst0"]["n"] == 3
+    assert said(err, "warning", soft), err
+    assert main(["build", str(plant)]) == 0
+    assert said(capsys.readouterr().err, "warning", soft)
+    assert main(["export", str(plant), "--out", str(tmp_path / "out")]) == 1
+    out, err = capsys.readouterr()
+    assert said(out + err, "error"), out + err
+    assert not (tmp_path / "out").exists()
+    # the right names: nothing to say anywhere
+    for argv in (["check", "--target", "codesys", str(prog)], ["run", str(prog)],
+                 ["build", str(prog)]):
+        assert main(argv) == 0
+        out, err = capsys.readouterr()
+        assert "E0602" not in out + err, argv

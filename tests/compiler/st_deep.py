@@ -10,6 +10,20 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
+from armbench.compiler.diagnostics import Diagnostic
+from armbench.compiler.strucpp import STRUCPP_CODES
+from armbench.compiler.targets import CODESYS, OPENPLC, Target
+
+# The nesting limits are MatIEC's: the constructs are checked for OpenPLC v3 and CODESYS, and
+# what STruC++ refuses in some of them (T#-1s, arrays of 3 and more dimensions, a FUNCTION
+# named Inc like OSCAT's; its rules' business, test_strucpp_verdicts.py) is a warning, left out by
+# matiec_view, so that the program is still checked and emitted.
+LIMITS_TARGET = Target(frozenset({OPENPLC, CODESYS}))
+
+
+def matiec_view(diags: list[Diagnostic]) -> list[Diagnostic]:
+    return [d for d in diags if d.code not in STRUCPP_CODES]
+
 CONFIG = """
 CONFIGURATION Config0
   RESOURCE Res0 ON PLC

@@ -44,6 +44,80 @@ END_VAR
   Spin := k;
 END_FUNCTION
 
+FUNCTION SumShifted : INT
+VAR_INPUT
+  shift : INT;
+END_VAR
+VAR
+  table : ARRAY[0..7] OF INT := [1, 2, 3, 4, 5, 6, 7, 8];
+  i : INT;
+END_VAR
+  FOR i := 0 TO 6 DO
+    SumShifted := SumShifted + table[i + shift];
+  END_FOR;
+END_FUNCTION
+
+FUNCTION SkipAhead : INT
+VAR_INPUT
+  jump : INT;
+END_VAR
+VAR
+  table : ARRAY[0..7] OF INT := [1, 2, 3, 4, 5, 6, 7, 8];
+  i : INT;
+END_VAR
+  FOR i := 0 TO 7 DO
+    SkipAhead := SkipAhead + table[i];
+    i := i + jump;
+  END_FOR;
+END_FUNCTION
+
+FUNCTION AfterLoop : INT
+VAR_INPUT
+  extra : INT;
+END_VAR
+VAR
+  table : ARRAY[0..6] OF INT := [1, 2, 3, 4, 5, 6, 7];
+  i : INT;
+END_VAR
+  FOR i := 0 TO 6 DO
+    AfterLoop := table[i] + AfterLoop;
+  END_FOR;
+  IF extra = 0 THEN
+    AfterLoop := AfterLoop + table[i];
+  ELSE
+    AfterLoop := AfterLoop + table[i - 1];
+  END_IF;
+END_FUNCTION
+
+FUNCTION PastEnd : INT
+VAR_INPUT
+  dummy : INT;
+END_VAR
+VAR
+  table : ARRAY[0..6] OF INT := [1, 2, 3, 4, 5, 6, 7];
+  i : INT;
+END_VAR
+  FOR i := 0 TO 6 DO
+    PastEnd := PastEnd + table[i] + dummy * table[i + 1];
+  END_FOR;
+END_FUNCTION
+
+FUNCTION SpinInner : INT
+VAR_INPUT
+  n : INT;
+END_VAR
+VAR
+  k : INT;
+  j : INT;
+END_VAR
+  WHILE k < n DO
+    FOR j := 1 TO 30000 DO
+      k := k + 0;
+    END_FOR;
+  END_WHILE;
+  SpinInner := k;
+END_FUNCTION
+
 FUNCTION_BLOCK Ratio
 VAR_INPUT
   num : INT;
@@ -134,6 +208,30 @@ def test_array_index_out_of_range(faults) -> None:  # type: ignore[no-untyped-de
     assert faults.call("Pick", i=1) == 10
 
 
+def test_for_loop_indices_are_checked_where_the_range_is_unknown(faults) -> None:  # type: ignore[no-untyped-def]
+    """A FOR loop with literal bounds whose variable nothing in it writes indexes without a
+    check where its range fits the array; an index beyond it, a shifted one, a variable the
+    body writes and the variable after the loop are still checked."""
+    assert faults.call("SumShifted", 0) == 28
+    assert faults.call("SumShifted", 1) == 35
+    for bad in (2, -1):  # the last (first) iteration is out of bounds
+        with pytest.raises(PlcFault) as ei:
+            faults.call("SumShifted", bad)
+        _assert_at(ei.value, _line_of(FAULTS_ST, "table[i + shift]"))
+    assert faults.call("SkipAhead", 0) == 36
+    assert faults.call("SkipAhead", 1) == 1 + 3 + 5 + 7
+    with pytest.raises(PlcFault) as ei:
+        faults.call("SkipAhead", -9)  # i := -9 + 1: table[-8]
+    _assert_at(ei.value, _line_of(FAULTS_ST, "SkipAhead := SkipAhead + table[i]"))
+    assert faults.call("AfterLoop", 1) == 28 + 7
+    with pytest.raises(PlcFault) as ei:
+        faults.call("AfterLoop", 0)  # the loop leaves i = 7
+    _assert_at(ei.value, _line_of(FAULTS_ST, "AfterLoop := AfterLoop + table[i];"))
+    with pytest.raises(PlcFault) as ei:
+        faults.call("PastEnd", 0)  # table[i + 1] at i = 6
+    _assert_at(ei.value, _line_of(FAULTS_ST, "dummy * table[i + 1]"))
+
+
 def test_endless_loop_hits_the_watchdog(faults) -> None:  # type: ignore[no-untyped-def]
     assert faults.call("Spin", 0) == 0
     with pytest.raises(PlcFault) as ei:
@@ -142,6 +240,16 @@ def test_endless_loop_hits_the_watchdog(faults) -> None:  # type: ignore[no-unty
     first = _line_of(FAULTS_ST, "WHILE k < n DO")
     assert first <= loc_line <= first + 2, ei.value.location  # inside the loop
     assert faults.call("Spin", -5) == 0  # and the module is usable again
+
+
+def test_endless_loop_around_a_counted_loop_hits_the_watchdog(faults) -> None:  # type: ignore[no-untyped-def]
+    """A FOR loop with literal bounds counts its iterations for the watchdog at once, before
+    it runs: 30000 of every 30001 iterations are the FOR's, so the clock is read (and the
+    budget found spent) there but once in 65536 outer iterations."""
+    assert faults.call("SpinInner", 0) == 0
+    with pytest.raises(PlcFault) as ei:
+        faults.call("SpinInner", 1)
+    _assert_at(ei.value, _line_of(FAULTS_ST, "FOR j := 1 TO 30000 DO"))
 
 
 def _qw(mod, i: int) -> int:  # type: ignore[no-untyped-def]

@@ -19,6 +19,7 @@ from armbench.compiler.frontend import check_syntax, read_parse
 from armbench.compiler.lower import lower
 from armbench.compiler.parse import parse_text
 from armbench.compiler.resolve import check
+from armbench.compiler.strucpp import STRUCPP_CODES
 from armbench.compiler.uses import Declaration, Library, LibraryUse
 
 REPO = Path(__file__).resolve().parents[2]
@@ -103,8 +104,9 @@ def run(tmp_path: Path, text: str, library: list[Path]) -> tuple[list[str], list
     src = tmp_path / "prog.st"
     src.write_text(text)
     a = analyse_program([src], library)
+    # what OpenPLC v4's STruC++ refuses (Color#GREEN) is not what these tests are about
     return ([d.name for d in a.library.kept], [r.mine.name for r in a.library.replaced],
-            [d.render() for d in a.diagnostics.sorted()])
+            [d.render() for d in a.diagnostics.sorted() if d.code not in STRUCPP_CODES])
 
 
 def test_nothing_used_nothing_taken(tmp_path: Path, library: list[Path]) -> None:

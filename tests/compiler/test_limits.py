@@ -15,7 +15,7 @@ from typing import TypeVar
 
 import numpy as np
 import pytest
-from st_deep import CONFIG, MATIEC_MAX, program
+from st_deep import CONFIG, LIMITS_TARGET, MATIEC_MAX, matiec_view, program
 
 from armbench.compiler import ast as A
 from armbench.compiler import check_files, compile_files
@@ -40,7 +40,7 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
 
 
 def codes(path: Path) -> list[str]:
-    return [d.code for d in check_files([path])]
+    return [d.code for d in matiec_view(check_files([path], target=LIMITS_TARGET))]
 
 
 # ------------------------------------------------------------------ the audit's inputs
@@ -150,7 +150,7 @@ def test_nesting_at_the_limit_passes_from_a_deep_caller(tmp_path: Path, construc
     ok = write(tmp_path, "ok", program(construct, n))
 
     def run() -> str:
-        prog, diags = analyse([ok])
+        prog, diags = analyse([ok], target=LIMITS_TARGET)
         assert prog is not None, diags.render()
         return emit(prog).code
 

@@ -18,6 +18,7 @@ from plcopen_to_st import N, xml_to_st
 
 from armbench.cli import main
 from armbench.compiler import CompileFailed, check_files, compile_files
+from armbench.compiler.strucpp import STRUCPP_CODES
 from armbench.compiler.symbols import CheckedProgram
 from armbench.compiler.types import ArrayType, ElemType, EnumType, StructType, Type
 from armbench.export import (
@@ -287,7 +288,7 @@ def test_xml_details(project: tuple[CheckedProgram, bytes, bytes]) -> None:
     assert scans.get("address") == "%MD0"
     assert scans.find("p:type/p:UDINT", N) is not None
     consts = prog.findall("p:interface/p:localVars[@constant='true']", N)
-    assert consts and "Err" in [v.get("name") for lst in consts for v in lst]
+    assert consts and "CmdMoveXyz" in [v.get("name") for lst in consts for v in lst]
     geo = root.find(".//p:dataType[@name='ArmGeometry']/p:baseType/p:struct", N)
     a1 = geo.find("p:variable[@name='A1']/p:initialValue/p:simpleValue", N)
     assert a1.get("value") == "100.0"
@@ -453,11 +454,18 @@ def test_features_xml_validates_and_round_trips(
 
     rebuilt = tmp_path / "features_from_xml.st"
     rebuilt.write_text(xml_to_st(xml))
-    assert check_files([rebuilt]) == [], "\n".join(d.render() for d in check_files([rebuilt]))
+    assert v3_and_codesys_findings(rebuilt) == []
     compile_files([rebuilt])
     single = tmp_path / "features_openplc.st"
     single.write_bytes(st)
-    assert check_files([single]) == []
+    assert v3_and_codesys_findings(single) == []
+
+
+def v3_and_codesys_findings(path: Path) -> list[str]:
+    """What `armbench check` reports but OpenPLC v4's: the features exercise what MatIEC and
+    CODESYS take, and STruC++ refuses several of them (Type#Value, STRUCT initialisers,
+    repeated values; its rules' cases are in test_strucpp_verdicts.py)."""
+    return [d.render() for d in check_files([path]) if d.code not in STRUCPP_CODES]
 
 
 def test_explicit_enum_values_are_refused(tmp_path: Path) -> None:

@@ -77,8 +77,9 @@ def test_user_program_export_is_named_after_it_and_holds_what_it_uses(
         work: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["export", "Blink.st", "--out", "out"]) == 0
     assert sorted(p.relative_to(work / "out").as_posix() for p in (work / "out").rglob("*.*")) \
-        == ["codesys/Blink_codesys.xml", "codesys/register-map.md", "openplc/Blink.st",
-            "plcopen/Blink.xml"]
+        == ["codesys/Blink_codesys.xml", "codesys/register-map.md", "openplc-v4/Blink/pous/"
+            "functions/DegToRad.st", "openplc-v4/Blink/pous/programs/Blink.st",
+            "openplc-v4/Blink/project.json", "openplc/Blink.st", "plcopen/Blink.xml"]
     upload = (work / "out" / "openplc" / "Blink.st").read_text()
     header = upload.split("*)", 1)[0]
     assert "upload file of the program Blink" in header and "arm controller" not in header

@@ -107,7 +107,8 @@ def user_upload(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Pa
     src.write_text(USER_PROGRAM)
     lib = default_project().library()
     exp = generate([src], library=lib)
-    (upload,) = [folder / rel for rel in exp.write(folder) if rel.suffix == ".st"]
+    # the OpenPLC upload, not the v4 project's POU files
+    (upload,) = [p for p in exp.write(folder) if p.suffix == ".st" and p.parent.name == "openplc"]
     return upload, [src]
 
 

@@ -115,3 +115,43 @@ def test_bad_addresses_are_one_line_usage_errors(tmp_path: Path, options: list[s
     assert proc.returncode == 4, proc.stdout + proc.stderr
     assert message in proc.stderr
     assert "Traceback" not in proc.stdout + proc.stderr
+
+
+SLOW_GARBAGE = """
+import gc
+import time
+
+
+class Slow:
+    \"\"\"In a reference cycle, so only the cyclic collector frees it, and slow to free: a
+    worker's last collection after a long run (compiled programs' syntax trees, hypothesis'
+    search trees) took this long on a loaded machine.\"\"\"
+
+    def __init__(self):
+        self.me = self
+
+    def __del__(self):
+        time.sleep(0.2)
+
+
+def test_leaves_garbage_that_takes_7_s_to_free():
+    gc.disable()  # as in a long run: no full collection before the session ends
+    for _ in range(35):
+        Slow()
+"""
+
+
+def test_a_green_run_under_xdist_ends_without_a_traceback(tmp_path: Path) -> None:
+    """A worker's last garbage collection runs before it reports its end: run after it, as
+    pytest's own does, it took longer than the 5 s execnet gives a finished worker, which
+    then got a SIGINT and printed a KeyboardInterrupt traceback under a green run."""
+    (tmp_path / "test_garbage.py").write_text(SLOW_GARBAGE)
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"}
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).resolve().parents[2] / "sim"),
+                                         env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           "-n", "1", "test_garbage.py"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0 and "1 passed" in out, out
+    assert "Traceback" not in out and "KeyboardInterrupt" not in out, out

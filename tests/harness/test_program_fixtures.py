@@ -5,6 +5,7 @@ and the raw registers are compared with Python's own encoding of the type (struc
 from __future__ import annotations
 
 import struct
+import time
 from pathlib import Path
 
 import pytest
@@ -167,8 +168,57 @@ def test_wait_until_and_the_soft_plcs_own_scan_count(echo: ProgramPlc) -> None:
         v["InDint"] = 41
         assert v.wait_until("OutDint", 40) == 40
         assert v.wait_until("OutDint", lambda x: x < 100) == 40
-        with pytest.raises(TimeoutError, match="OutDint is 40 after 0.1 s, waiting for 7"):
+        with pytest.raises(TimeoutError, match=r"wait_until\('OutDint', 7\) gave up after "
+                           r"0.1 s: OutDint last read 40; if it only needs longer, raise the "
+                           r"limit: timeout_s=0.4 on this call, or for every wait the pytest "
+                           r"option --plc-wait-timeout 0.4 \(plc_wait_timeout = 0.4 in the ini "
+                           r"file\)"):
             v.wait_until("OutDint", 7, timeout_s=0.1)
+
+
+def test_a_waits_timeout_names_the_condition_and_the_last_value(echo: ProgramPlc) -> None:
+    """The TimeoutError of a wait says what it waited for, as the test wrote it, and what it
+    saw last."""
+    def above_a_hundred(x: object) -> bool:
+        return isinstance(x, int) and x > 100
+
+    with echo.connect() as v:
+        v["InDint"] = 41
+        v.wait_until("OutDint", 40)
+        here = Path(__file__).name
+        with pytest.raises(TimeoutError) as lam:
+            v.wait_until("OutDint", lambda x: x > 100, timeout_s=0.05)
+        assert str(lam.value).startswith("wait_until('OutDint', lambda x: x > 100 "
+                                         f"({here}:"), lam.value
+        assert "OutDint last read 40;" in str(lam.value)
+        with pytest.raises(TimeoutError) as named:
+            v.wait_until("outdint", above_a_hundred, timeout_s=0.05)
+        assert str(named.value).startswith(
+            "wait_until('OutDint', test_a_waits_timeout_names_the_condition_and_the_last_value"
+            f".<locals>.above_a_hundred ({here}:"), named.value
+        with pytest.raises(TimeoutError, match=r"wait_scans\(1000000\) gave up after 0.05 s: "
+                           r"the PLC ran fewer scans .*timeout_s=0.2"):
+            v.wait_scans(1_000_000, timeout_s=0.05)
+        with pytest.raises(ValueError, match="timeout_s must be a number of seconds above 0"):
+            v.wait_until("OutDint", 40, timeout_s=0)
+
+
+def test_the_default_wait_timeout_is_five_seconds_and_settable(echo: ProgramPlc) -> None:
+    from armbench.harness import pytest_plugin
+    from armbench.harness.program import DEFAULT_WAIT_TIMEOUT_S
+
+    assert DEFAULT_WAIT_TIMEOUT_S == pytest_plugin.DEFAULT_WAIT_TIMEOUT_S == 5.0
+    with echo.connect() as v:
+        assert v.wait_timeout_s == 5.0
+    with echo.connect(wait_timeout_s=0.2) as v:
+        t0 = time.monotonic()
+        with pytest.raises(TimeoutError, match="gave up after 0.2 s"):
+            v.wait_until("OutDint", 7)
+        assert time.monotonic() - t0 < 3.0
+        with pytest.raises(TimeoutError, match="gave up after 0.2 s"):
+            v.wait_scans(1_000_000)
+    with pytest.raises(ValueError, match="wait_timeout_s must be a number of seconds above 0"):
+        echo.connect(wait_timeout_s=float("nan"))
 
 
 def test_a_fault_ends_a_wait_with_its_place(echo: ProgramPlc) -> None:

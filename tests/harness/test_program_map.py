@@ -197,3 +197,13 @@ def test_a_program_that_does_not_check_or_is_missing(tmp_path: Path) -> None:
         program(tmp_path, single("X AT %MD0 : DINT;", "X := Y;"))
     with pytest.raises(ProgramError, match="no such file"):
         PlcProgram.load([tmp_path / "missing.st"])
+
+
+def test_the_soft_plc_takes_any_configuration_name(tmp_path: Path) -> None:
+    """Config0/Res0 are OpenPLC's upload's names: the plugin's soft PLC runs a program whose
+    CONFIGURATION and RESOURCE are named otherwise, as `armbench run` does."""
+    text = single("X AT %MD0 : DINT;", "X := X + 1;")
+    named = text.replace("CONFIGURATION Config0", "CONFIGURATION Tank") \
+        .replace("RESOURCE Res0", "RESOURCE Cpu")
+    assert named != text
+    assert program(tmp_path, named).variable("X").location == "%MD0"

@@ -192,3 +192,81 @@ def test_the_readmes_excerpts_are_the_example_files() -> None:
                                             "examples/my_program/test_tank.py"}
     for name, text in fences:
         assert text in (ROOT / name).read_text(encoding="utf-8"), name
+
+
+def test_the_readme_shows_the_whole_configuration() -> None:
+    """A program runs only under a CONFIGURATION (Config0, Res0, a periodic TASK, the PROGRAM
+    instance WITH it): the README's own-program section shows tank.st's, whole, so a reader
+    who copies the excerpts has a program every command runs."""
+    import re
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Testing your own program with pytest", 1)[1].split("\n## ", 1)[0]
+    shown = re.findall(r"^```st examples/my_program/tank.st\n(.*?)^```\s*$", section, re.S | re.M)
+    tank = (EXAMPLE / "tank.st").read_text(encoding="utf-8")
+    config = re.search(r"^CONFIGURATION .*?^END_CONFIGURATION\n", tank, re.S | re.M)
+    assert config is not None
+    assert config.group(0) in shown
+    assert re.search(r"TASK \w+\(INTERVAL := T#\w+", config.group(0))
+    assert re.search(r"PROGRAM \w+ WITH \w+ : TankControl;", config.group(0))
+
+
+COUNTER = """
+PROGRAM Counter
+  VAR
+    Count AT %MD0 : DINT;
+  END_VAR
+  Count := Count + 1;
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK MainTask(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM Main WITH MainTask : Counter;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+NEVER = """
+def test_waits_for_what_never_comes(plc_vars):
+    plc_vars.wait_until("Count", lambda v: v < 0)
+"""
+
+
+def test_the_wait_timeout_by_option_and_by_ini(tmp_path: Path) -> None:
+    """--plc-wait-timeout, else plc_wait_timeout in the ini file, is how long plc_vars' waits
+    wait; the failure names the condition, the last value and how to raise the limit."""
+    (tmp_path / "counter.st").write_text(COUNTER)
+    (tmp_path / "test_waits.py").write_text(NEVER)
+    ini = tmp_path / "pytest.ini"
+    ini.write_text("[pytest]\nplc_program = counter.st\nplc_no_library = true\n")
+    said = ("wait_until('Count', lambda v: v < 0 (test_waits.py:3)) gave up after {} s: Count "
+            "last read ")
+    for setting, limit in ((["--plc-wait-timeout", "0.3"], "0.3"), ([], "0.4")):
+        if not setting:
+            ini.write_text(ini.read_text() + "plc_wait_timeout = 0.4\n")
+        proc = run_pytest(tmp_path, "-q", *setting)
+        out = proc.stdout + proc.stderr
+        assert proc.returncode == 1 and "1 failed" in out, out
+        assert said.format(limit) in out, out
+        assert f"--plc-wait-timeout {float(limit) * 4:g}" in out, out
+    ini.write_text(ini.read_text().replace("plc_wait_timeout = 0.4", "plc_wait_timeout = soon"))
+    proc = run_pytest(tmp_path, "-q")
+    assert proc.returncode == 4, proc.stdout + proc.stderr
+    assert "plc_wait_timeout (ini) is 'soon'" in proc.stderr, proc.stderr
+    proc = run_pytest(tmp_path, "-q", "--plc-wait-timeout", "0")
+    assert proc.returncode == 4 and "must be a number of seconds above 0" in proc.stderr, \
+        proc.stderr
+
+
+def test_the_readme_shows_a_waits_real_timeout_message() -> None:
+    import re
+
+    from armbench.harness import program
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    shown = re.search(r"^```\n(TimeoutError: wait_until.*?)^```$", readme, re.S | re.M)
+    assert shown is not None
+    assert " ".join(shown.group(1).split()) == (
+        "TimeoutError: wait_until('Pump', True) gave up after 5 s: Pump last read False; "
+        + program._raise_the_limit(program.DEFAULT_WAIT_TIMEOUT_S))

@@ -28,7 +28,12 @@ RUNTIME_DIR = Path(__file__).parent / "runtime"
 # Measured interleaved in one run (bench/startup.py has the build figures): the IK kernel of
 # bench/compiler_bench.py within 1 %, a 6-joint jerk-limited plan 11-13 % slower (a few
 # microseconds, under 0.2 % of a 10 ms scan); without that inlining, code ran up to 45 % slower.
-CFLAGS = ["-Og", "-finline-small-functions", "-fPIC", "-shared", "-fwrapv",
+# -fcaller-saves (an -O2 pass: values live across a call may sit in registers the call
+# clobbers, saved around it): without it -Og kept LREALs live across calls in integer
+# registers, moving them to and from the FPU's at every use; the jerk-limited planner plans
+# 6 joints 10-15 % faster with it (bench/jerk_timing.py), for about 3 % more gcc CPU time on
+# st/. clang ignores it (and -finline-small-functions), with a warning.
+CFLAGS = ["-Og", "-finline-small-functions", "-fcaller-saves", "-fPIC", "-shared", "-fwrapv",
           "-fno-strict-aliasing", "-std=gnu11", "-w"]
 # POU code per translation unit below which another compiler process costs more (its start,
 # the shared declarations parsed again) than it saves

@@ -16,8 +16,9 @@ Every diagnostic is one line, `file:line:col: error[CODE]: message` (warnings,
 `warning[CODE]`, and notes, `note[N...]`, do not fail the check). `armbench check` ends with a
 one-line summary. The portability rules mirror what MatIEC (the compiler inside OpenPLC) or
 OpenPLC's C build rejects, as measured on the real tools (see docs/matiec-facts.md): code that
-passes `armbench check` compiles there too. `--target` adds what IEC 61131-3's 3rd edition and
-the CODESYS family refuse (Targets, below).
+passes `armbench check` compiles there too. `--target` adds what OpenPLC v4's STruC++ refuses
+or builds with other values (docs/strucpp-facts.md) and what IEC 61131-3's 3rd edition and the
+CODESYS family refuse (Targets, below).
 
 | code | what it means | what to write instead |
 |---|---|---|
@@ -25,26 +26,35 @@ the CODESYS family refuse (Targets, below).
 
 
 TARGETS = """
-## Targets (E0214, E0215, E0309, E0411)
+## Targets (E0214, E0215, E0309, E0411, E0602 and STruC++'s codes)
 
-`armbench check --target openplc|codesys|all` (default `all`; in Python
+`armbench check --target openplc|openplc-v4|codesys|all` (default `all`; in Python
 `check_files(paths, target=Target.named("codesys"))`) says which compilers the code is for:
-`openplc` is MatIEC, `codesys` IEC 61131-3's 3rd edition and the CODESYS family (CODESYS V3,
+`openplc` is OpenPLC v3's MatIEC, `openplc-v4` OpenPLC v4's STruC++ (ST to C++17, built by the
+v4 runtime with g++), `codesys` IEC 61131-3's 3rd edition and the CODESYS family (CODESYS V3,
 TwinCAT 3, RuSTy, which follows CODESYS). All the other codes are the subset the bench compiles
-and are errors for every target. These four are enforced by some dialects only, so their
-severity follows the target: an **error** when a dialect you check for refuses the construct,
-a **warning** when only one you do not check for refuses it (it builds where you deploy, not
-everywhere) or when one you check for only warns. `all` is the default because the library
-must build everywhere. `build`, `run`, `serve` and `export` compile what OpenPLC runs: they use
-`openplc` and fail only on its errors; `export`, whose CODESYS XML carries the same text,
-also prints what `codesys` refuses, as warnings.
+and are errors for every target. These are enforced by some dialects only, so their severity
+follows the target: an **error** when a dialect you check for refuses the construct, a
+**warning** when only one you do not check for refuses it (it builds where you deploy, not
+everywhere) or when one you check for only warns. STruC++ "refuses" what its parser or checker
+rejects, what g++ then fails on in its C++, and what it compiles to another value than the
+source says. A construct MatIEC and STruC++ both build with different values (E0312) is an
+error when you check for both, a warning for one of them. `all` is the default because the library
+must build everywhere. `export` writes the OpenPLC upload: it uses `openplc` and fails only on
+its errors; its CODESYS XML carries the same text, so it also prints what `codesys` refuses,
+as warnings. `build`, `run`, `serve` and the pytest plugin compile what OpenPLC runs, for the
+bench's soft PLC: `openplc`, except that the names OpenPLC's upload needs (E0602's Config0 and
+Res0) are a warning on stderr, since the soft PLC runs any names.
 
-| code | `--target openplc` | `--target codesys` | `--target all` |
-|---|---|---|---|
-| E0214 reserved name | warning | error | error |
-| E0215 `__`, trailing `_` | error | error (`__`), warning (trailing) | error |
-| E0309 TRUNC narrowed | nothing | warning | warning |
-| E0411 array element as in-out | error | warning | error |
+| code | `--target openplc` | `--target openplc-v4` | `--target codesys` | `--target all` |
+|---|---|---|---|---|
+| E0214 reserved name | warning | warning | error | error |
+| E0215 `__`, trailing `_` | error | warning | error (`__`), warning (trailing) | error |
+| E0309 TRUNC narrowed | nothing | nothing | warning | warning |
+| E0411 array element as in-out | error | warning | warning | error |
+| the other STruC++ codes (below) | warning | error | warning | error |
+| E0312 TIME conversion | warning | warning | nothing | error |
+| E0602 CONFIGURATION not Config0, RESOURCE not Res0 | error | warning | warning | error |
 
 - **E0214.** One list, `sim/armbench/compiler/reserved.py`, with its sources: IEC 61131-3
   (3rd edition) keywords, data types, standard functions and FBs; the keywords of CODESYS's
@@ -57,7 +67,7 @@ also prints what `codesys` refuses, as warnings.
   Write instead: a longer name (`Calibration`, not `Cal`; `ChannelBit`, not `Bit`; `ArcTan2`,
   not `Atan2`).
 - **E0215.** `Lim__Sw` and `Lim_Sw_` fail in iec2c ("invalid located variable declaration");
-  a leading underscore (`_Lim`) builds. Write `Lim_Sw`.
+  a leading underscore (`_Lim`) builds. Write `Lim_Sw`. STruC++ takes all three.
 - **E0309.** TRUNC's result type differs: MatIEC takes it from the context, CODESYS returns
   DINT, RuSTy LINT. RuSTy warns wherever the LINT goes into a narrower integer: an
   assignment, an argument, a FUNCTION's result, through arithmetic and ABS, LIMIT, MIN, MAX,
@@ -70,6 +80,91 @@ also prints what `codesys` refuses, as warnings.
   VAR_IN_OUT given an element, and a STRUCT field without an index build. Write
   `Tmp := Arr[I]; Ok := Bump(Val := Tmp); Arr[I] := Tmp;`, or pass the whole array as
   VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK.
+- **E0602, the names.** OpenPLC v3's upload needs `CONFIGURATION Config0` and `RESOURCE Res0`
+  (its runtime's build looks for the C files MatIEC names after them); MatIEC compiles any
+  names, CODESYS takes any, and the soft PLC runs any, saying
+  `warning[E0602]: CONFIGURATION 'Plant': OpenPLC's upload needs it to be named Config0 (the
+  bench's soft PLC runs it as it is)`. The rest of E0602 (one RESOURCE, a periodic TASK, each
+  PROGRAM instance WITH a TASK) is what the bench runs, an error for every target.
+  VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK. STruC++ builds
+  all of them.
+
+### What STruC++ (OpenPLC v4) refuses or builds differently
+
+Measured on STruC++ 0.6.1 (fb7980f) with its runtime headers and g++ 12 run as the v4 runtime
+runs it (`-std=c++17 -O1 -pipe -fPIC -DSTRUCPP_THREADED`); docs/strucpp-facts.md has the
+measurements, and `tests/compiler/test_strucpp_verdicts.py` runs every corpus case of these codes
+through the real STruC++ (its verdict must be the checker's). The forms to write instead
+build in MatIEC, STruC++, RuSTy and CODESYS alike.
+
+- **E0109 `CONTINUE`.** Not in STruC++'s grammar. Put the rest of the loop body under
+  `IF NOT (condition) THEN ... END_IF;` (EXIT is in its grammar).
+- **E0110 literal forms.** Its lexer has no token for a sign after `#` (`DINT#-8`,
+  `T#-250ms`), an enumeration's `Mode#Running`, or `_` in a REAL literal (`1_000.0`), and
+  its grammar no typed literal as a CASE label (`INT#5:`). Write `-DINT#8`, `T#0s - T#250ms`,
+  `Running`, `1000.0`, and untyped labels (`5:`, `-8:`, `16#FF:`, ranges).
+- **E0216 reserved names.** STruC++ upper-cases every name into its C++, beside its runtime
+  and the POUs of the libraries its command line loads: its keywords (`SUPER`, `PUBLIC`,
+  `PROPERTY`, ...), the C macros that C++ sees (`LITTLE_ENDIAN`, `MAXFLOAT`, `EIO`,
+  `CPU_SET`, ...) and its runtime's `IEC_*` types break any declaration; the functions and
+  types of its runtime (`TIME_TO_NS`, `DT_TO_MS`, ...), of its standard libraries (`ROUND`,
+  `ATAN2`, `NEG`, `TO_INT`, `SEMA`, `MC_POWER`, ...) and of the bundled OSCAT Basic library
+  (564 names: `TOGGLE`, `SCALE`, `DELAY`, `FACT`, `INC`, `CALENDAR`, ...) break a POU, TYPE or
+  VAR_GLOBAL of that name ("redefinition of class TOGGLE"). The lists are data files in
+  `sim/armbench/compiler/data/` (strucpp-*.txt). As variables and fields those names are fine.
+  Rename (`FlipFlop`, not `Toggle`).
+- **E0217 VAR_GLOBAL in a RESOURCE.** Its grammar takes VAR_GLOBAL in the CONFIGURATION only:
+  move the block before the RESOURCE.
+- **E0310 NOT (...), ROL, ROR of a C++ int.** `NOT` followed by a parenthesis is a call of
+  its runtime's `NOT` template, which takes IEC bit types only (`bool`, the unsigned
+  integers, their `IECVar` wrappers). Its `AND`/`OR`/`XOR` are C++'s `& | ^`; variables are
+  `IECVar<T>`, whose operators keep the wrapper for one `T` (`IECVar<bool> & bool` is
+  `IECVar<bool>`), and anything else is C++'s built-in operator with its promotions: a
+  comparison, `TRUE`, `NOT x` written without parentheses and a VAR_EXTERNAL read are raw
+  `bool`, and `bool & bool` is `int`, left to right (`(a > b) AND (a < b) AND Ready` is
+  `int`, `Ready AND (a > b) AND (a < b)` is `IECVar<bool>`); a WORD or BYTE beside an
+  untyped literal is `int` too. g++ then fails ("no matching function for call to
+  NOT(int)"). Assigned, compared, XORed or passed to a BOOL input, that `int` is converted
+  and fine. Write NOT on each comparison (De Morgan: `NOT ((a >= b) AND (a <= b))` is
+  `(a < b) OR (a > b)`), assign the expression to a BOOL first, or type the literal
+  (`WORD#16#FF`).
+- **E0311 decimal literals above 2^53.** It parses an untyped decimal literal into a
+  JavaScript double and writes the double back: `9007199254740993` becomes
+  `9007199254740992`, `2^61` `2305843009213694000`, `2^63 - 1` `9223372036854776000`, which
+  g++ takes as a 128-bit constant and wraps; in statements, CASE labels and FUNCTION_BLOCK
+  or FUNCTION initial values (a PROGRAM's or a VAR_GLOBAL's elementary initial value is
+  copied as written). Typed (`LINT#...`) and based (`16#`, `8#`, `2#`) literals are exact.
+- **E0312 TIME conversions.** MatIEC converts TIME from and to integers and REALs in seconds,
+  STruC++ in milliseconds (`DINT_TO_TIME(3)` is 3 s against 3 ms; `REAL_TO_TIME(1.5)` 1.5 s
+  against 1 ms). Write `T#1ms * n` or keep durations in TIME.
+- **E0412 mixed C++ argument types.** Its runtime's `MUX` is `T MUX(IEC_INT k, T in0, T in1,
+  ...)`, its `AND`/`OR`/`XOR` functions and `MIN`/`MAX` of three or more arguments deduce
+  one `T` as well; STruC++ casts untyped literals for `AND`, `OR`, `XOR`, `MIN`, `MAX`, not
+  for `MUX`. A variable beside an untyped literal or an arithmetic expression (`A + 1` is
+  `int`, `Y * 2.0` `double`, `-B` `int`) fails. Type the literal (`INT#5`) or assign the
+  expression to a variable first. SEL, LIMIT and two-argument MIN/MAX have overloads for
+  mixed types.
+- **E0413 named arguments out of order.** It passes a standard function's arguments in the
+  order written and ignores their names: `LIMIT(IN := v, MN := 0, MX := 10)` is
+  `LIMIT(v, 0, 10)`. Write them in the function's order (`MN, IN, MX`; `G, IN0, IN1`;
+  `IN, N`). The order of MIN's, MAX's, AND's, OR's, XOR's inputs does not change the value.
+- **E0505 STRUCT initialisers.** No `(X := 0.0, Y := 1.0)` initial values, in any VAR
+  block (FB instance initialisers neither). Assign the fields once at the first scan, or let
+  a zero input mean the default.
+- **E0506 repeated values.** No `[3(1.0)]` in array initialisers: write the values out.
+- **E0507 TYPE initial values.** Refused on an array TYPE; on an enumeration TYPE taken and
+  ignored (its variables start at the first value). Give the value at each variable.
+- **E0508 dropped array initial values.** It accepts and drops the initial values of a
+  PROGRAM's arrays (VAR and VAR CONSTANT), of array VAR_GLOBALs and of array STRUCT fields:
+  they start at 0. A FUNCTION_BLOCK's or FUNCTION's arrays keep theirs: keep tables in a
+  FUNCTION_BLOCK's VAR CONSTANT, or fill the array at the first scan.
+- **E0509 arrays of 3 or more dimensions.** Its runtime's 3-D array has no element access
+  and no initialiser, and its deeper arrays (nested 1-D arrays) no `at(i, j, k, l)`:
+  declaring, copying and passing them whole builds, a subscript or an initial value fails.
+  Use an array of STRUCTs that each hold a 2-D array (`A[i].M[j, k]`).
+- **E0510 CONSTANT without a value.** "CONSTANT variable must have an initializer", for any
+  type, in VAR, VAR_TEMP and VAR_EXTERNAL CONSTANT (which cannot have one). Give the value,
+  or use a plain VAR of a code STRUCT that nothing writes (a VAR_EXTERNAL without CONSTANT).
 """
 
 

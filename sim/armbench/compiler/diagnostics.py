@@ -28,6 +28,17 @@ CODES: dict[str, tuple[str, str]] = {
     "E0108": ("nesting too deep", "MatIEC's parser stack overflows (e.g. beyond 63 nested IFs "
               "or 189 nested parentheses; see Limits below): move inner parts into variables or "
               "FUNCTIONs (long flat chains like a + b + c are fine)"),
+    "E0111": ("CONFIGURATION out of form",
+              "write CONFIGURATION Config0 / RESOURCE Res0 ON PLC / TASK MainTask(INTERVAL := "
+              "T#10ms, PRIORITY := 0); / PROGRAM Inst WITH MainTask : Main; / END_RESOURCE / "
+              "END_CONFIGURATION (Main: your PROGRAM; TASKs before the PROGRAM instances)"),
+    "E0109": ("CONTINUE", "put the rest of the loop body under IF NOT (condition) THEN ... "
+              "END_IF: STruC++ (OpenPLC v4) has no CONTINUE (an error for --target openplc-v4 "
+              "and all, a warning for the others)"),
+    "E0110": ("literal form STruC++ refuses", "write -DINT#8 (not DINT#-8), T#0s - T#250ms "
+              "(not T#-250ms), the enumeration value alone (not Mode#Stop), 1000.0 (not "
+              "1_000.0), untyped CASE labels (5:, 16#FF:, not INT#5:): STruC++ (OpenPLC v4) has "
+              "no token or no grammar for these"),
     "E0200": ("undeclared name", "declare the variable, type or POU"),
     "E0201": ("duplicate declaration", "names are case-insensitive: rename one"),
     "E0202": ("reserved name", "rename it: MatIEC reserves keywords, type names and standard "
@@ -61,6 +72,13 @@ CODES: dict[str, tuple[str, str]] = {
     "E0215": ("identifier with consecutive or trailing underscores",
               "write one underscore between parts and none at the end (Lim_Sw, not Lim__Sw "
               "or Lim_Sw_): MatIEC refuses both, CODESYS refuses '__'"),
+    "E0216": ("name STruC++ (OpenPLC v4) reserves", "rename it: its keywords (SUPER, PUBLIC, "
+              "PROPERTY, ...) and the C macros its C++ sees (LITTLE_ENDIAN, MAXFLOAT, EIO, ...) "
+              "as any name; the POUs and types of its runtime and libraries (ATAN2, ROUND, NEG, "
+              "TO_INT, SCALE, TOGGLE, MC_POWER, ...) as POU, type or global names (see Targets "
+              "below)"),
+    "E0217": ("VAR_GLOBAL inside a RESOURCE", "declare the globals in the CONFIGURATION, before "
+              "the RESOURCE: STruC++ (OpenPLC v4) takes them there only"),
     "E0300": ("type mismatch", "convert explicitly, e.g. INT_TO_REAL(x)"),
     "E0301": ("integer literal in REAL context", "write a real literal such as 2.0"),
     "E0302": ("not assignable", "assign only variables, not inputs of FUNCTIONs, constants "
@@ -75,6 +93,19 @@ CODES: dict[str, tuple[str, str]] = {
               "Turns := TRUNC(x)) or convert it with LINT_TO_DINT(TRUNC(x)): TRUNC returns "
               "LINT in RuSTy and DINT in CODESYS, so anything narrower warns there (a warning "
               "for --target codesys and all; MatIEC types TRUNC from its context)"),
+    "E0310": ("NOT (...), ROL or ROR of a C++ int in STruC++", "apply NOT to each comparison "
+              "(De Morgan: NOT ((a >= b) AND (a <= b)) is (a < b) OR (a > b)), or assign the "
+              "expression to a BOOL variable first; type literals beside a WORD or BYTE "
+              "(WORD#16#FF): STruC++'s NOT, ROL and ROR take IEC bit types only, and g++ fails on "
+              "its C++ for NOT (x AND y) of two comparisons (Targets below)"),
+    "E0311": ("decimal integer literal STruC++ writes with another value",
+              "write LINT#9007199254740993 or 16#20000000000001: STruC++ (OpenPLC v4) passes "
+              "untyped decimal literals above 2^53 through a JavaScript double; typed and "
+              "hexadecimal literals are exact"),
+    "E0312": ("conversion from or to TIME", "keep durations in TIME (T#3s, T#1ms * n), or in an "
+              "integer of milliseconds you scale yourself: MatIEC converts TIME from and to "
+              "seconds, STruC++ (OpenPLC v4) milliseconds (an error for --target all, a warning "
+              "for openplc and openplc-v4)"),
     "E0400": ("bad call", "check the POU name and its parameters"),
     "E0401": ("call without arguments", "pass at least one argument: MatIEC rejects F()"),
     "E0402": ("mixed named and positional arguments", "pass all arguments named or all "
@@ -99,16 +130,45 @@ CODES: dict[str, tuple[str, str]] = {
               "callee a FUNCTION_BLOCK): OpenPLC's C build fails on the element; inside a "
               "FUNCTION it builds (an error for --target openplc and all, a warning for "
               "codesys)"),
+    "E0412": ("MUX, or AND/OR/XOR/MIN/MAX called by name, with arguments of different C++ "
+              "types in STruC++", "type the literals (INT#5, REAL#1.0) or assign each expression "
+              "to a variable first: STruC++'s runtime deduces one C++ type from a variable "
+              "(IECVar<short>) and an untyped literal or expression (int), and g++ fails"),
+    "E0413": ("standard function's named arguments out of its parameter order",
+              "name the arguments in the order the function declares them (LIMIT(MN := .., IN := "
+              ".., MX := ..)): STruC++ (OpenPLC v4) passes them in the order written and "
+              "computes another value"),
     "E0500": ("array bound is not a literal", "write literal bounds: ARRAY[0..3]"),
     "E0501": ("ARRAY OF ARRAY", "use a multi-dimensional array ARRAY[a..b, c..d]"),
     "E0502": ("ARRAY of FB instances", "declare the instances one by one"),
     "E0503": ("too many initial values", "give at most as many values as the array holds"),
     "E0504": ("FB instance in a STRUCT", "declare the instance in the FUNCTION_BLOCK or "
               "PROGRAM that uses it: MatIEC accepts only data types as STRUCT fields"),
+    "E0505": ("STRUCT or FB initialiser as an initial value", "assign the fields in the body "
+              "(once, at the first scan), or let a zero value mean the default: STruC++ "
+              "(OpenPLC v4) has no (name := value) initialisers"),
+    "E0506": ("repeated value n(v) in an array initialiser", "write the values out: STruC++ "
+              "(OpenPLC v4) has no repetition"),
+    "E0507": ("initial value on a TYPE", "give the initial value at each variable of the type: "
+              "STruC++ (OpenPLC v4) refuses one on an array TYPE and ignores one on an "
+              "enumeration (its variables start at the first value)"),
+    "E0508": ("array initial values STruC++ drops", "keep the table in a FUNCTION_BLOCK's VAR "
+              "(CONSTANT) and call it, or fill the array at the first scan: STruC++ (OpenPLC v4) "
+              "drops the initial values of a PROGRAM's arrays, of array VAR_GLOBALs and of array "
+              "STRUCT fields, silently (they start at 0)"),
+    "E0509": ("array of 3 or more dimensions subscripted or initialised",
+              "use an array of STRUCTs that each hold a 2-D array (A[i].M[j, k]): STruC++'s "
+              "runtime (OpenPLC v4) has no element access and no initialiser for them"),
+    "E0510": ("CONSTANT without an initial value", "give it an initial value, or make it a plain "
+              "VAR that nothing writes (VAR_EXTERNAL: drop CONSTANT): STruC++ (OpenPLC v4) "
+              "refuses a constant without one"),
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
-    "E0602": ("configuration layout", "name it Config0 with RESOURCE Res0 and a periodic TASK"),
+    "E0602": ("configuration layout", "one RESOURCE, a periodic TASK, each PROGRAM instance "
+              "WITH a TASK; the names Config0 and Res0 for OpenPLC's upload (an error for "
+              "--target openplc and all, a warning for codesys and for build, run and serve: "
+              "see Targets below)"),
     "E0700": ("C compiler failed", "an internal error of the bench: report it with the ST"),
     "N0001": ("file is not UTF-8: read as Windows-1252 (cp1252); a note, not an error",
               "nothing if the accented characters show right; else save the file as UTF-8"),

@@ -1,4 +1,5 @@
 """The rules only some dialects enforce; their severity comes from the target (targets.py).
+What STruC++ (OpenPLC v4) refuses is its own module, strucpp.py.
 
 Needs: a CheckedProgram (after resolve and rules.check_names; what an erroneous program
 leaves unresolved is skipped). Each rule was established on the real tools:
@@ -17,6 +18,9 @@ leaves unresolved is skipped). Each rule was established on the real tools:
   C helper that spells the element `.table1` and g++ fails ("has no member named 'table1'");
   the same call inside a FUNCTION, and an FB instance's VAR_IN_OUT given an element, build and
   run (measured on OpenPLC v3's toolchain). RuSTy takes all of them.
+- E0602 (the names): OpenPLC v3's upload needs CONFIGURATION Config0 and RESOURCE Res0 (its
+  runtime's build names the generated C files after them); MatIEC compiles any names,
+  CODESYS takes any, and the bench's soft PLC runs any. An upload rule: upload_severity.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from . import ast as A
 from .diagnostics import Diagnostics
 from .reserved import codesys_family_reserves, matiec_reserves
 from .rules import declared_names
+from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
 from .targets import CODESYS, OPENPLC, Target
 from .types import ElemType, Type
@@ -40,6 +45,8 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_reserved_names(prog, diags, target)
     check_trunc_narrowing(prog, diags, target)
     check_element_out_arguments(prog, diags, target)
+    check_configuration_names(prog, diags, target)
+    check_strucpp(prog, diags, target)
 
 
 # ------------------------------------------------------------------ names
@@ -178,3 +185,25 @@ def _through_index(e: A.Expr) -> bool:
             return True
         e = e.obj
     return False
+
+
+# ------------------------------------------------------------------ configuration names
+def check_configuration_names(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """Config0 and Res0, the names OpenPLC's upload needs: an error for an OpenPLC check or
+    upload, a warning for CODESYS and for the soft PLC, which run any names."""
+    if prog.config is None:
+        return
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    config = next(c for u in prog.units for c in u.configs)  # the one prog.config models
+    where = ("" if sev == "error" else
+             " (the bench's soft PLC runs it as it is)" if not target.upload else
+             " (CODESYS takes any name)")
+    if config.name.upper() != "CONFIG0":
+        diags.report(sev, config.pos, "E0602", f"CONFIGURATION '{config.name}': OpenPLC's "
+                     f"upload needs it to be named Config0{where}")
+    res = config.resources[0]
+    if res.name.upper() != "RES0":
+        diags.report(sev, res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
+                     f"upload needs it to be named Res0{where}")

@@ -3,7 +3,8 @@
 The files given are the program; ``library`` files are looked up by use (uses.py): only the
 library declarations the program needs are compiled with it. ``target`` (targets.py) says
 which dialects the check is for: a check defaults to all of them, as `armbench check` does;
-compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``openplc``. Each file's
+compiling for the bench's soft PLC, which runs what OpenPLC runs, to ``SOFT_PLC`` (OpenPLC's
+rules, the names its upload needs a warning), as `armbench build` and `run` do. Each file's
 front end is cached (units.py), and so is each whole compilation to a Module (programs.py).
 """
 
@@ -22,7 +23,7 @@ from .emit_c import CUnit, emit
 from .resolve import check
 from .rules import check_names
 from .symbols import CheckedProgram
-from .targets import ALL, OPENPLC_ONLY, Target
+from .targets import ALL, SOFT_PLC, Target
 from .units import UnitCache, paused_gc
 from .uses import Library, LibraryUse
 
@@ -125,7 +126,7 @@ def check_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
 
 
 def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
-               target: Target = OPENPLC_ONLY, unit_cache: UnitCache | None = None
+               target: Target = SOFT_PLC, unit_cache: UnitCache | None = None
                ) -> tuple[CheckedProgram, CUnit]:
     with paused_gc():
         a = analyse_program(paths, library, target, unit_cache)
@@ -135,7 +136,7 @@ def emit_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
 
 
 def compile_files(paths: Sequence[str | Path], library: Sequence[str | Path] = (),
-                  target: Target = OPENPLC_ONLY) -> Module:
+                  target: Target = SOFT_PLC) -> Module:
     """The program compiled and loaded: from the cache of compilations (programs.py) when
     these files were compiled before for ``target``."""
     with paused_gc():

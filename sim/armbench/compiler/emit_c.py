@@ -1,20 +1,26 @@
 """Emit C: CheckedProgram -> one C translation unit. Needs: a program with no diagnostics.
 
 Layout: a cffi-parsable declarations section (image, types, POU structs, entry points), then
-the code. Every POU is a struct plus `_init`/`_body` functions; FUNCTIONs get a frame struct
-initialised on every call (MatIEC re-initialises function locals). Integer results are cast
-back to their IEC type (wrap-around, compiled with -fwrapv); division, MOD, indices and loops
-go through the runtime's checked helpers, which fault with the ST position.
+the code. Every FUNCTION_BLOCK and PROGRAM is a struct plus `_init`/`_body` functions. A
+FUNCTION is a C function, `FN_x_fn`, whose locals are C locals initialised on every call
+(MatIEC re-initialises function locals), so that the C compiler keeps them in registers: its
+scalar inputs are parameters, a STRUCT input the body never writes is passed by pointer (else
+copied on entry), VAR_IN_OUT and VAR_OUTPUT by pointer, a scalar result is returned and an
+aggregate one written through a pointer (see FnParams); its frame struct with `_init`/`_run`
+remains, holding the inputs, outputs and result, for the FFI. Integer results are cast back to
+their IEC type (wrap-around, compiled with -fwrapv); division, MOD, indices and loops go
+through the runtime's checked helpers, which fault with the ST position.
 """
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from . import ast as A
 from .stdlib import STD_FB_BODIES, STD_FBS
-from .symbols import CheckedProgram, PouSym, VarSym
+from .symbols import CallTarget, CheckedProgram, PouSym, VarSym
 from .types import (
     BOOL,
     ELEMENTARY,
@@ -47,6 +53,12 @@ void plc_set_watchdog(int64_t ns);
 
 # links of a binary chain per C temporary (see Emitter.binary)
 SPILL_EVERY = 100
+# counted FOR loops (Emitter.fixed_for) of at most UNROLL_TRIPS iterations and UNROLL_NODES
+# AST nodes written out are emitted iteration by iteration (Emitter.unrolled_for)
+UNROLL_TRIPS = 8
+UNROLL_NODES = 1200
+# what a FUNCTION's frame struct holds (its other variables are locals of its C function)
+FN_FRAME_KINDS = (A.VAR_INPUT, A.VAR_IN_OUT, A.VAR_OUTPUT)
 
 
 @dataclass
@@ -63,6 +75,30 @@ class CUnit:
     shared: str = ""  # types, prototypes, the standard FBs: what every unit needs
     pieces: list[str] = field(default_factory=list)  # one per POU, callees first
     main: str = ""  # the program's storage and the configuration's entry points
+
+
+@dataclass
+class FnParams:
+    """How a FUNCTION's variables are passed and named in its C function ``FN_x_fn``.
+
+    ``by_pointer``: the STRUCT inputs the body never writes (no assignment to them or to a
+    part of them, never a VAR_IN_OUT argument or an output target): passed as a pointer to
+    the caller's value, read in place. The other STRUCT inputs are passed as a pointer too and
+    copied into a local on entry (``copied``)."""
+
+    by_pointer: set[str] = field(default_factory=set)
+    copied: set[str] = field(default_factory=set)
+    # can a call of it write anything of the caller's (a VAR_IN_OUT or VAR_OUTPUT)?
+    writes_caller: bool = False
+    # an aggregate result: the local that every exit returns (`F := B;` before each RETURN
+    # and at the end, the result used nowhere else) lives in the result's place
+    result_local: str = ""
+    # an aggregate result whose initial value nobody sees (written whole at the end, no
+    # RETURN, used nowhere else): not initialised on entry
+    result_init: bool = True
+    # aggregate locals written whole by the body's first statements before being read:
+    # not initialised on entry
+    no_init: set[str] = field(default_factory=set)
 
 
 class _Local:
@@ -91,6 +127,16 @@ class Emitter:
         self.ffi_only: list[str] = []
         self.std_code: list[str] = []
         self.pieces: list[str] = []
+        self.fn_params: dict[str, FnParams] = {}
+        # the FOR variables whose values are known in the loop being emitted (fixed_for)
+        self.for_ranges: dict[VarSym, tuple[int, int]] = {}
+        self.inout_bound_memo: dict[str, set[VarSym]] = {}
+        self.cur_fp: FnParams | None = None  # params_of(cur) while a FUNCTION is emitted
+        self.fixed_memo: dict[int, tuple[int, int, int] | None] = {}
+        self.unroll_memo: dict[int, int] = {}  # FOR node -> nodes in its body
+        self.unroll_scale = 1  # iterations of the loops being written out, multiplied
+        # expression node -> does evaluating it call a FUNCTION that writes the caller's
+        self.writes_memo: dict[int, bool] = {}
 
     # ================================================================ types
     def ctype(self, t: Type) -> str:
@@ -174,6 +220,8 @@ class Emitter:
                 self.ffi_only.append(f"extern {ct} {const_name(cname, v)};\n")
                 self.forward.append(f"extern const {ct} {const_name(cname, v)};\n")
                 continue
+            if sym.kind == "FUNCTION" and v.kind not in FN_FRAME_KINDS:
+                continue  # a local of FN_x_fn: the frame holds what the FFI passes and reads
             ptr = "*" if v.kind == A.VAR_IN_OUT or v.address else ""
             lines.append(f"    {ct} {ptr}{v.key};\n")
         if sym.kind == "FUNCTION":
@@ -298,11 +346,18 @@ class Emitter:
         self.cur = sym
         self.loc = _Local()
         cname = self.pou_cname(sym)
-        init: list[str] = ["memset(self, 0, sizeof *self);"]
         consts = "".join(
             f"const {self.ctype(v.type)} {const_name(cname, v)} = "
             f"{self.static_init(v.type, v.init)};\n"
             for v in sym.vars.values() if is_shared_constant(v))
+        if sym.kind == "FUNCTION":
+            self.cur_fp = self.params_of(sym)
+            try:
+                self.function_code(sym, consts)
+            finally:
+                self.cur = self.cur_fp = None
+            return
+        init: list[str] = ["memset(self, 0, sizeof *self);"]
         for v in sym.vars.values():
             if v.kind in (A.VAR_EXTERNAL, A.VAR_IN_OUT) or is_shared_constant(v):
                 continue
@@ -314,11 +369,10 @@ class Emitter:
             self.init_value(f"self->{v.key}", v.type, v.init, init)
         self.forward.append(f"PLC__INTERNAL void {cname}_body({cname} *self);\n")
         temps: list[str] = []
-        if sym.kind != "FUNCTION":  # a FUNCTION's frame is initialised on every call anyway
-            for v in sym.vars.values():
-                if v.kind == A.VAR_TEMP:
-                    temps.append(f"memset(&self->{v.key}, 0, sizeof self->{v.key});")
-                    self.init_value(f"self->{v.key}", v.type, v.init, temps)
+        for v in sym.vars.values():
+            if v.kind == A.VAR_TEMP:
+                temps.append(f"PLC__ZERO(self->{v.key});")
+                self.init_value(f"self->{v.key}", v.type, v.init, temps)
         body = ("    int plc__brk_ = 0;\n    (void)plc__brk_;\n" +
                 "".join(f"    {t}\n" for t in temps) + self.block(sym.node.body, 1))
         self.pieces.append(
@@ -330,6 +384,245 @@ class Emitter:
             f"    {cname}_body(self);\n    return 0;\n}}\n")
         self.storage = []
         self.cur = None
+
+    def function_code(self, sym: PouSym, consts: str) -> None:
+        """A FUNCTION: its C function FN_x_fn (FnParams), and for the FFI the frame's _init
+        (the inputs' initial values) and _run (FN_x_fn on the frame)."""
+        assert sym.node is not None and sym.return_type is not None
+        cname = self.pou_cname(sym)
+        fp = self.params_of(sym)
+        init: list[str] = ["memset(self, 0, sizeof *self);"]
+        for v in sym.vars.values():
+            if v.kind == A.VAR_INPUT:
+                self.init_value(f"self->{v.key}", v.type, v.init, init)
+        params: list[str] = []
+        run_args: list[str] = []
+        prologue = ["int plc__brk_ = 0;", "(void)plc__brk_;"]
+        outputs: list[str] = []
+        for v in sym.vars.values():
+            if v.kind not in FN_FRAME_KINDS:
+                continue
+            ct = self.ctype(v.type)
+            if v.kind == A.VAR_INPUT and is_scalar(v.type):
+                params.append(f"{ct} a_{v.key}")
+                run_args.append(f"self->{v.key}")
+            elif v.kind == A.VAR_INPUT:
+                params.append(f"const {ct} *a_{v.key}")
+                run_args.append(f"&self->{v.key}")
+                if v.key in fp.copied:
+                    prologue.append(f"{ct} l_{v.key}; PLC__COPY(l_{v.key}, *a_{v.key});")
+            elif v.kind == A.VAR_IN_OUT:
+                params.append(f"{ct} *a_{v.key}")
+                run_args.append(f"self->{v.key}")
+            else:  # VAR_OUTPUT: the caller's, from its initial value on
+                params.append(f"{ct} *a_{v.key}")
+                run_args.append(f"&self->{v.key}")
+                outputs.append(f"PLC__ZERO(*a_{v.key});")
+                self.init_value(f"(*a_{v.key})", v.type, v.init, outputs)
+        # inputs are copied before anything is written: the caller may pass a pointer to
+        # what the result or an output will be written to (fn_call)
+        prologue += outputs
+        rt = self.ctype(sym.return_type)
+        # the result starts at its type's initial value (a STRUCT's field defaults), as
+        # MatIEC's does
+        if is_scalar(sym.return_type):
+            ret_c = rt
+            prologue.append(self.declare("l_ret_", sym.return_type, None))
+            run_call = f"self->ret_ = {cname}_fn({', '.join(run_args)});"
+            epilogue = "    return l_ret_;\n"
+        else:
+            ret_c = "void"
+            params.append(f"{rt} *plc__ret")
+            run_args.append("&self->ret_")
+            if fp.result_init and not fp.result_local:
+                prologue.append("PLC__ZERO(*plc__ret);")
+                self.init_value("(*plc__ret)", sym.return_type, None, prologue)
+            run_call = f"{cname}_fn({', '.join(run_args)});"
+            epilogue = ""
+        for v in sym.vars.values():
+            if v.kind not in (A.VAR, A.VAR_TEMP) or is_shared_constant(v):
+                continue
+            if v.key == fp.result_local:
+                if v.key not in fp.no_init:
+                    init_ret = ["PLC__ZERO(*plc__ret);"]
+                    self.init_value("(*plc__ret)", v.type, v.init, init_ret)
+                    prologue += init_ret
+            elif v.key in fp.no_init:
+                prologue.append(f"{self.ctype(v.type)} l_{v.key};")
+            else:
+                prologue.append(self.declare(f"l_{v.key}", v.type, v.init))
+        sig = f"{ret_c} {cname}_fn({', '.join(params) or 'void'})"
+        self.forward.append(f"PLC__INTERNAL {sig};\n")
+        body = "".join(f"    {x}\n" for x in prologue) + self.block(sym.node.body, 1) + epilogue
+        self.pieces.append(
+            consts +
+            f"void {cname}_init({cname} *self) {{\n    " + "\n    ".join(init) + "\n}\n"
+            f"PLC__INTERNAL {sig} {{\n{body}}}\n"
+            f"int {cname}_run({cname} *self) {{\n"
+            f"    if (setjmp(plc__jmp)) return 1;\n    plc__wd_begin();\n"
+            f"    {run_call}\n    return 0;\n}}\n")
+
+    def assign_c(self, lhs: str, value: A.Expr, t: Type) -> str:
+        """`lhs := value` as a C statement (see copy_c)."""
+        if not is_scalar(t) and isinstance(value, A.Name | A.Member | A.Index):
+            return self.copy_c(lhs, self.expr(value, want=t), t)
+        return f"{lhs} = {self.expr(value, want=t)};"
+
+    def copy_c(self, lhs: str, rhs: str, t: Type) -> str:
+        """An assignment of the C lvalue rhs to lhs: a large STRUCT or array through the
+        runtime's PLC__COPY (the C library's memmove)."""
+        return f"{lhs} = {rhs};" if is_scalar(t) else f"PLC__COPY({lhs}, {rhs});"
+
+    def declare(self, name: str, t: Type, init: A.Init | None) -> str:
+        """A C local ``name`` of type t with its initial value (statements)."""
+        out: list[str] = []
+        self.init_value(name, t, init, out)
+        ct = self.ctype(t)
+        if is_scalar(t):
+            return " ".join([f"{ct} {name} = 0;", *out])
+        return " ".join([f"{ct} {name};", f"PLC__ZERO({name});", *out])
+
+    def params_of(self, sym: PouSym) -> FnParams:
+        """How FUNCTION sym takes its STRUCT inputs (FnParams), from what its body writes."""
+        fp = self.fn_params.get(sym.key)
+        if fp is not None:
+            return fp
+        assert sym.node is not None
+        written: set[str] = set()
+        body_nodes = nodes(sym.node.body)
+        for node in body_nodes:
+            if isinstance(node, A.Assign):
+                written.add(self.root_key(node.target))
+            elif isinstance(node, A.For):
+                written.add(self.root_key(node.var))
+            elif isinstance(node, A.Call):
+                tgt = self.p.calls.get(node)
+                if tgt is None or tgt.pou is None:
+                    continue
+                for key, e in tgt.inputs:
+                    if tgt.pou.vars[key].kind == A.VAR_IN_OUT:
+                        written.add(self.root_key(e))
+                for _, e in tgt.outputs:
+                    written.add(self.root_key(e))
+        fp = FnParams(writes_caller=any(v.kind in (A.VAR_IN_OUT, A.VAR_OUTPUT)
+                                        for v in sym.vars.values()))
+        for v in sym.vars.values():
+            if v.kind == A.VAR_INPUT and not is_scalar(v.type):
+                (fp.copied if v.key in written else fp.by_pointer).add(v.key)
+        assert sym.return_type is not None
+        if not is_scalar(sym.return_type):
+            self.result_analysis(sym, fp, body_nodes)
+        self.first_writes(sym, fp)
+        self.fn_params[sym.key] = fp
+        return fp
+
+    def result_analysis(self, sym: PouSym, fp: FnParams, body_nodes: list[A.Node]) -> None:
+        """FnParams.result_local and result_init of a FUNCTION with an aggregate result."""
+        assert sym.node is not None
+        body = sym.node.body
+        whole: list[A.Assign] = []  # `F := ...`
+        refs = 0  # every use of F
+        for node in body_nodes:
+            if isinstance(node, A.Name) and self.is_result(node):
+                refs += 1
+            elif isinstance(node, A.Assign) and self.is_result(node.target):
+                whole.append(node)
+        last = body[-1] if body else None
+        if not whole or refs != len(whole) or not isinstance(last, A.Assign) or \
+                not self.is_result(last.target):
+            return
+        lists = list(statement_lists(body))
+        has_return = any(isinstance(st, A.Return) for sl in lists for st in sl)
+        if not has_return:
+            fp.result_init = False
+        # the named result: `F := B` with one local B, before every RETURN and at the end
+        keys = {self.local_key(a.value) for a in whole}
+        key = keys.pop() if len(keys) == 1 else ""
+        v = sym.vars.get(key)
+        assert sym.return_type is not None
+        if not key or v is None or v.kind != A.VAR or is_shared_constant(v) or \
+                self.ctype(v.type) != self.ctype(sym.return_type):
+            return
+        for sl in lists:
+            for i, st in enumerate(sl):
+                before = sl[i - 1] if i > 0 else None
+                if isinstance(st, A.Return) and not (
+                        isinstance(before, A.Assign) and self.is_result(before.target)):
+                    return
+        fp.result_local = key
+
+    def first_writes(self, sym: PouSym, fp: FnParams) -> None:
+        """FnParams.no_init: the aggregate locals the body's leading whole assignments write
+        before anything reads them."""
+        assert sym.node is not None
+        seen: set[str] = set()
+        for st in sym.node.body:
+            if not isinstance(st, A.Assign):
+                break
+            read = {self.local_key(n) for n in nodes(st.value) if isinstance(n, A.Name)}
+            seen |= read
+            key = self.local_key(st.target)
+            v = sym.vars.get(key)
+            if key and key not in seen and v is not None and v.kind in (A.VAR, A.VAR_TEMP) \
+                    and not is_scalar(v.type) and not is_shared_constant(v):
+                fp.no_init.add(key)
+            seen.add(key)
+
+    def is_result(self, e: A.Expr) -> bool:
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        return ref is not None and ref.kind == "pou_result"
+
+    def local_key(self, e: A.Expr) -> str:
+        """The key of the variable e names ("" when e is no plain variable name)."""
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        return ref.var.key if ref is not None and ref.var is not None and \
+            ref.kind == "var" else ""
+
+    def root_key(self, e: A.Expr) -> str:
+        """The key of the variable an lvalue is part of ("" when it is none)."""
+        while isinstance(e, A.Member | A.Index):
+            e = e.obj
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        return ref.var.key if ref is not None and ref.var is not None and \
+            ref.kind == "var" else ""
+
+    def root_of(self, e: A.Expr) -> tuple[object, str] | None:
+        """The variable an lvalue of the current POU is part of (its VarSym; the POU's for
+        a FUNCTION's result), and how it is reached: "fresh" (a FUNCTION's own local or
+        result, or a shared constant: nothing else the FUNCTION can reach points to it; a
+        caller passes a result's place only when none of the arguments is that place),
+        "direct" (an instance's or the configuration's own storage) or "indirect" (through a
+        pointer: a VAR_IN_OUT, a FUNCTION's STRUCT input or output, a located variable).
+        None: not a variable."""
+        while isinstance(e, A.Member | A.Index):
+            e = e.obj
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        if ref is not None and ref.kind == "pou_result":
+            return self.cur, "fresh"
+        if ref is None or ref.var is None or ref.kind not in ("var", "global"):
+            return None
+        v = ref.var
+        if self.in_function() and v.kind == A.VAR:
+            assert self.cur is not None
+            if v.key == self.params_of(self.cur).result_local:
+                return self.cur, "fresh"
+        if v.address or v.kind in (A.VAR_IN_OUT, A.VAR_OUTPUT) and self.in_function():
+            return v, "indirect"
+        if v.kind == A.VAR_IN_OUT:
+            return v, "indirect"
+        if ref.kind == "global":
+            return v, "direct"
+        if is_shared_constant(v):
+            return v, "fresh"
+        if self.in_function():
+            assert self.cur is not None
+            if v.kind == A.VAR_INPUT and v.key in self.params_of(self.cur).by_pointer:
+                return v, "indirect"
+            return v, "fresh"
+        return v, "direct"
+
+    def in_function(self) -> bool:
+        return self.cur is not None and self.cur.kind == "FUNCTION"
 
     def address_ptr(self, v: VarSym) -> str:
         area, size, nums = split_address(v.address or "")
@@ -382,6 +675,136 @@ class Emitter:
             "    return 0;\n}\n#endif\n")
 
     # ================================================================ statements
+    def unrollable(self, s: A.For, trip: int) -> bool:
+        """A counted loop (fixed_for) small enough to be written out iteration by
+        iteration, with no EXIT or CONTINUE in it: its body, times its iterations and those
+        of the loops written out around it, at most UNROLL_NODES nodes."""
+        if trip > UNROLL_TRIPS:
+            return False
+        if id(s) not in self.unroll_memo:
+            body = nodes(s.body)
+            has_exit = any(isinstance(node, A.Exit | A.Continue) for node in body)
+            self.unroll_memo[id(s)] = UNROLL_NODES + 1 if has_exit else len(body)
+        return self.unroll_memo[id(s)] * trip * self.unroll_scale <= UNROLL_NODES
+
+    def unrolled_for(self, s: A.For, var: VarSym, trip: int, ind: str, depth: int) -> str:
+        """A small counted loop written out: the variable set to each value in turn before
+        its copy of the body (indices by it are constant offsets then, and the C compiler
+        keeps values from one iteration to the next in registers), then to the value the
+        loop leaves it at."""
+        vt = self.p.expr_types[s.var]
+        assert isinstance(vt, ElemType)
+        v = self.lvalue(s.var)
+        ct = self.ctype(vt)
+        start = literal_int(s.start)
+        step = 1 if s.step is None else literal_int(s.step)
+        assert start is not None and step is not None
+        out = [f"{ind}PLC__WD_N({self.pos(s)}, {trip});\n"] if trip else []
+        scale = self.unroll_scale
+        self.unroll_scale *= max(trip, 1)
+        try:
+            for k in range(trip):
+                value = start + k * step
+                self.for_ranges[var] = (value, value)
+                out.append(f"{ind}{v} = ({ct}){value};\n{ind}{{\n"
+                           f"{self.block(s.body, depth + 1)}{ind}}}\n")
+        finally:
+            self.for_ranges.pop(var, None)
+            self.unroll_scale = scale
+        out.append(f"{ind}{v} = ({ct}){start + trip * step};\n")
+        return "".join(out)
+
+    def fixed_for(self, s: A.For) -> tuple[int, int, int] | None:
+        """(lowest, highest value of the variable, iterations) of a FOR loop with literal
+        bounds and step whose variable, a plain local, nothing in the loop can change, and
+        that ends without the variable wrapping around; at most 65536 iterations."""
+        if id(s) not in self.fixed_memo:  # an unrolled loop emits the loops in it again
+            self.fixed_memo[id(s)] = self.find_fixed_for(s)
+        return self.fixed_memo[id(s)]
+
+    def find_fixed_for(self, s: A.For) -> tuple[int, int, int] | None:
+        ref = self.p.names.get(s.var)
+        vt = self.p.expr_types.get(s.var)
+        if ref is None or ref.kind != "var" or ref.var is None or \
+                not isinstance(vt, ElemType) or vt.kind not in ("sint", "uint"):
+            return None
+        v = ref.var
+        if v.kind not in (A.VAR, A.VAR_TEMP) or v.address or v.constant:
+            return None
+        start, end = literal_int(s.start), literal_int(s.end)
+        step = 1 if s.step is None else literal_int(s.step)
+        if start is None or end is None or step is None:
+            return None
+        tlo, thi = vt.int_range()
+        if step == 0 or not (tlo <= end + step <= thi) or not tlo <= start <= thi:
+            return None
+        trip = max(0, (end - start) // step + 1)
+        if trip > 65536 or self.writes_var(s.body, v):
+            return None
+        # an FB called in the loop may write through a VAR_IN_OUT bound at an earlier call
+        if not self.in_function() and v in self.inout_bound_vars():
+            return None
+        last = start + (trip - 1) * step
+        return min(start, last), max(start, last), trip
+
+    def writes_var(self, body: list[A.Stmt], v: VarSym) -> bool:
+        """Does something in body assign v, loop over it, or pass it as a VAR_IN_OUT or an
+        output target?"""
+        for node in nodes(body):
+            if isinstance(node, A.Assign) and self.root_var(node.target) is v:
+                return True
+            if isinstance(node, A.For) and self.root_var(node.var) is v:
+                return True
+            if isinstance(node, A.Call):
+                tgt = self.p.calls.get(node)
+                if tgt is None or tgt.pou is None:
+                    continue
+                if any(self.root_var(e) is v for _, e in tgt.outputs) or any(
+                        tgt.pou.vars[key].kind == A.VAR_IN_OUT and self.root_var(e) is v
+                        for key, e in tgt.inputs):
+                    return True
+        return False
+
+    def inout_bound_vars(self) -> set[VarSym]:
+        """The variables of the current POU passed as a VAR_IN_OUT somewhere in its body."""
+        assert self.cur is not None and self.cur.node is not None
+        found = self.inout_bound_memo.get(self.cur.key)
+        if found is None:
+            found = set()
+            for node in nodes(self.cur.node.body):
+                if isinstance(node, A.Call):
+                    tgt = self.p.calls.get(node)
+                    if tgt is not None and tgt.pou is not None:
+                        for key, e in tgt.inputs:
+                            v = self.root_var(e)
+                            if v is not None and tgt.pou.vars[key].kind == A.VAR_IN_OUT:
+                                found.add(v)
+            self.inout_bound_memo[self.cur.key] = found
+        return found
+
+    def root_var(self, e: A.Expr) -> VarSym | None:
+        while isinstance(e, A.Member | A.Index):
+            e = e.obj
+        ref = self.p.names.get(e) if isinstance(e, A.Name) else None
+        return ref.var if ref is not None and ref.kind == "var" else None
+
+    def known_range(self, e: A.Expr) -> tuple[int, int] | None:
+        """The values an index expression can take, where the emitter knows them: a FOR
+        variable of fixed_for, plus or minus an integer literal."""
+        if isinstance(e, A.Name):
+            ref = self.p.names.get(e)
+            return self.for_ranges.get(ref.var) if ref is not None and ref.kind == "var" \
+                and ref.var is not None else None
+        if isinstance(e, A.Binary) and e.op in ("+", "-"):
+            for a, b, sign in ((e.left, e.right, 1), (e.right, e.left, 1)):
+                if e.op == "-" and a is e.right:
+                    continue
+                r = self.known_range(a)
+                if r is not None and isinstance(b, A.Literal) and b.kind == "int":
+                    k = int(b.value) * (-1 if e.op == "-" else sign)
+                    return r[0] + k, r[1] + k
+        return None
+
     def block(self, body: list[A.Stmt], depth: int) -> str:
         out: list[str] = []
         for s in body:
@@ -395,7 +818,16 @@ class Emitter:
         ind = "    " * depth
         if isinstance(s, A.Assign):
             tt = self.p.expr_types[s.target]
-            return f"{ind}{self.lvalue(s.target)} = {self.expr(s.value, want=tt)};\n"
+            if self.in_function() and self.is_result(s.target):
+                assert self.cur is not None
+                local = self.params_of(self.cur).result_local
+                if local and self.local_key(s.value) == local:
+                    return ""  # the named result is the result itself
+            if isinstance(s.value, A.Call) and not is_scalar(tt):
+                call = self.p.calls[s.value]
+                if call.kind == "function" and self.may_target(s.target, call):
+                    return f"{ind}{self.fn_call(s.value, dest=s.target)};\n"
+            return f"{ind}{self.assign_c(self.lvalue(s.target), s.value, tt)}\n"
         if isinstance(s, A.CallStmt):
             return self.fb_call(s.call, ind)
         if isinstance(s, A.If):
@@ -437,11 +869,26 @@ class Emitter:
             step = self.expr(s.step, want=vt) if s.step is not None else "1"
             end = self.expr(s.end, want=vt)
             stp = self.loc.tmp()
-            return (f"{ind}for ({v} = {self.expr(s.start, want=vt)}; ; ) {{\n"
+            fixed = self.fixed_for(s)
+            before, each = "", f"{ind}    PLC__WD({self.pos(s)});\n"
+            var = self.p.names[s.var].var
+            if fixed is not None and var is not None and self.unrollable(s, fixed[2]):
+                return self.unrolled_for(s, var, fixed[2], ind, depth)
+            if fixed is not None and var is not None:
+                # a known number of iterations: counted once for the watchdog, and the
+                # variable's range known inside (indices need no bounds check)
+                before, each = f"{ind}PLC__WD_N({self.pos(s)}, {fixed[2]});\n", ""
+                self.for_ranges[var] = (fixed[0], fixed[1])
+            try:
+                inner = self.block(s.body, depth + 2)
+            finally:
+                if var is not None:
+                    self.for_ranges.pop(var, None)
+            return (f"{before}{ind}for ({v} = {self.expr(s.start, want=vt)}; ; ) {{\n"
                     f"{ind}    {ct} {stp} = {step};\n"
                     f"{ind}    if ({stp} >= 0 ? !({v} <= {end}) : !({v} >= {end})) break;\n"
-                    f"{ind}    PLC__WD({self.pos(s)});\n"
-                    f"{ind}    do {{\n{self.block(s.body, depth + 2)}{ind}    }} while (0);\n"
+                    f"{each}"
+                    f"{ind}    do {{\n{inner}{ind}    }} while (0);\n"
                     f"{ind}    if (plc__brk_) {{ plc__brk_ = 0; break; }}\n"
                     f"{ind}    {v} = ({ct})({v} + {stp});\n{ind}}}\n")
         if isinstance(s, A.While):
@@ -459,6 +906,10 @@ class Emitter:
         if isinstance(s, A.Continue):
             return f"{ind}break;\n"
         if isinstance(s, A.Return):
+            if self.in_function():
+                assert self.cur is not None and self.cur.return_type is not None
+                if is_scalar(self.cur.return_type):
+                    return f"{ind}return l_ret_;\n"
             return f"{ind}return;\n"
         raise AssertionError(f"statement {type(s).__name__}")
 
@@ -475,30 +926,141 @@ class Emitter:
             if v.kind == A.VAR_IN_OUT:
                 out += f"{ind}    {inst}.{key} = &{self.lvalue(e)};\n"
             else:
-                out += f"{ind}    {inst}.{key} = {self.expr(e, want=v.type)};\n"
+                out += f"{ind}    {self.assign_c(f'{inst}.{key}', e, v.type)}\n"
         out += f"{ind}    {cname}_body(&{inst});\n"
         for key, e in tgt.outputs:
-            out += f"{ind}    {self.lvalue(e)} = {inst}.{key};\n"
+            out += f"{ind}    {self.copy_c(self.lvalue(e), f'{inst}.{key}', sym.vars[key].type)}\n"
         return out + f"{ind}}}\n"
 
-    def fn_call(self, c: A.Call) -> str:
+    def fn_call(self, c: A.Call, dest: A.Expr | None = None) -> str:
+        """A FUNCTION call: its arguments evaluated in the order written, each into a
+        temporary, then FN_x_fn. A STRUCT input goes by pointer to the argument itself when
+        nothing can change it before the callee is done with it (see may_point), else by
+        pointer to a copy. ``dest``: the variable the aggregate result is written to
+        directly (may_target), the call then a statement."""
         tgt = self.p.calls[c]
         sym = tgt.pou
-        assert sym is not None
+        assert sym is not None and sym.return_type is not None
         cname = self.pou_cname(sym)
-        f = self.loc.tmp()
-        parts = [f"{cname} {f}; {cname}_init(&{f});"]
+        fp = self.params_of(sym)
+        # may evaluating an argument write to what another one points to?
+        side_effects = any(self.writes_caller(e) for _, e in tgt.inputs)
+        inout_roots = [self.root_of(e) for key, e in tgt.inputs
+                       if sym.vars[key].kind == A.VAR_IN_OUT]
+        parts: list[str] = []
+        if dest is not None:
+            d = self.loc.tmp()
+            parts.append(f"{self.ctype(sym.return_type)} *{d} = &{self.lvalue(dest)};")
+        passed: dict[str, str] = {}
         for key, e in tgt.inputs:
             v = sym.vars[key]
+            ct = self.ctype(v.type)
+            t = self.loc.tmp()
             if v.kind == A.VAR_IN_OUT:
-                parts.append(f"{f}.{key} = &{self.lvalue(e)};")
+                parts.append(f"{ct} *{t} = &{self.lvalue(e)};")
+                passed[key] = t
+            elif is_scalar(v.type):
+                parts.append(f"{ct} {t} = {self.expr(e, want=v.type)};")
+                passed[key] = t
+            elif not side_effects and self.may_point(e, key in fp.by_pointer, inout_roots):
+                parts.append(f"const {ct} *{t} = &{self.lvalue(e)};")
+                passed[key] = t
             else:
-                parts.append(f"{f}.{key} = {self.expr(e, want=v.type)};")
-        parts.append(f"{cname}_body(&{f});")
-        for key, e in tgt.outputs:
-            parts.append(f"{self.lvalue(e)} = {f}.{key};")
-        parts.append(f"{f}.ret_;")
-        return "({ " + " ".join(parts) + " })"
+                parts.append(f"{ct} {t}; {self.assign_c(t, e, v.type)}")
+                passed[key] = f"&{t}"
+        args: list[str] = []
+        outs: dict[str, str] = {}
+        for v in sym.vars.values():
+            if v.kind not in FN_FRAME_KINDS:
+                continue
+            if v.key in passed:
+                args.append(passed[v.key])
+                continue
+            t = self.loc.tmp()
+            if v.kind == A.VAR_IN_OUT:
+                args.append("0")
+            elif v.kind == A.VAR_OUTPUT:
+                parts.append(f"{self.ctype(v.type)} {t};")
+                args.append(f"&{t}")
+                outs[v.key] = t
+            else:  # an input not given: its initial value
+                parts.append(self.declare(t, v.type, v.init))
+                args.append(t if is_scalar(v.type) else f"&{t}")
+        after = [self.copy_c(self.lvalue(e), outs[key], sym.vars[key].type)
+                 for key, e in tgt.outputs]
+        if is_scalar(sym.return_type):
+            call = f"{cname}_fn({', '.join(args)})"
+            if not after:
+                return "({ " + " ".join([*parts, f"{call};"]) + " })"
+            r = self.loc.tmp()
+            parts.append(f"{self.ctype(sym.return_type)} {r} = {call};")
+        elif dest is not None:
+            args.append(d)
+            parts.append(f"{cname}_fn({', '.join(args)});")
+            return "({ " + " ".join([*parts, *after]) + " })"
+        else:
+            r = self.loc.tmp()
+            parts.append(f"{self.ctype(sym.return_type)} {r};")
+            args.append(f"&{r}")
+            parts.append(f"{cname}_fn({', '.join(args)});")
+        return "({ " + " ".join([*parts, *after, f"{r};"]) + " })"
+
+    def writes_caller(self, e: A.Expr) -> bool:
+        """Does evaluating e call a FUNCTION that writes through a VAR_IN_OUT or VAR_OUTPUT?
+        Every node below e gets its answer at once (children first, with a stack), so that
+        nested calls cost linear time."""
+        memo = self.writes_memo
+        if id(e) in memo:
+            return memo[id(e)]
+        order: list[A.Node] = []
+        stack: list[object] = [e]
+        while stack:
+            cur = stack.pop()
+            if isinstance(cur, A.Node):
+                if id(cur) in memo:
+                    continue
+                order.append(cur)
+                stack.extend(cur.__dict__.values())
+            elif isinstance(cur, list | tuple):
+                stack.extend(cur)
+        for node in reversed(order):  # every node after the nodes below it
+            own = False
+            if isinstance(node, A.Call):
+                tgt = self.p.calls.get(node)
+                own = tgt is not None and tgt.kind == "function" and tgt.pou is not None \
+                    and self.params_of(tgt.pou).writes_caller
+            memo[id(node)] = own or any(memo.get(id(child), False)
+                                        for child in children(node))
+        return memo[id(e)]
+
+    def may_point(self, e: A.Expr, read_only: bool,
+                  inout_roots: list[tuple[object, str] | None]) -> bool:
+        """May a STRUCT input be passed as a pointer to the argument e itself? A callee that
+        copies it on entry (not read_only) needs only an lvalue; one that reads it in place
+        needs also that none of the call's VAR_IN_OUT arguments can be the same storage."""
+        if not isinstance(e, A.Name | A.Member | A.Index):
+            return False
+        root = self.root_of(e)
+        if root is None:
+            return False
+        if not read_only:
+            return True
+        return not any(may_alias(root, other) for other in inout_roots)
+
+    def may_target(self, target: A.Expr, tgt: CallTarget) -> bool:
+        """May the FUNCTION call `tgt` write its aggregate result straight into `target`
+        (the caller's variable)? Only when none of its STRUCT and VAR_IN_OUT arguments can
+        be that variable: the callee writes its result from entry on."""
+        root = self.root_of(target)
+        if root is None or tgt.pou is None:
+            return False
+        for key, e in tgt.inputs:
+            if is_scalar(tgt.pou.vars[key].type):
+                continue
+            if isinstance(e, A.Name | A.Member | A.Index) and \
+                    may_alias(root, self.root_of(e)):
+                return False
+        return True
 
     # ================================================================ expressions
     def var_ref(self, e: A.Expr) -> str:
@@ -506,12 +1068,25 @@ class Emitter:
         v = ref.var
         assert v is not None
         if ref.kind == "pou_result":
-            return "self->ret_"
+            assert self.cur is not None and self.cur.return_type is not None
+            return "l_ret_" if is_scalar(self.cur.return_type) else "(*plc__ret)"
         if ref.kind == "global":
             return f"(*plc_globals.{v.key})" if v.address else f"plc_globals.{v.key}"
         if is_shared_constant(v):
             assert self.cur is not None
             return const_name(self.pou_cname(self.cur), v)
+        fp = self.cur_fp
+        if fp is not None:
+            if v.kind == A.VAR_INPUT:
+                if is_scalar(v.type):
+                    return f"a_{v.key}"
+                if v.key in fp.by_pointer:
+                    return f"(*a_{v.key})"
+            elif v.kind in (A.VAR_IN_OUT, A.VAR_OUTPUT):
+                return f"(*a_{v.key})"
+            elif v.kind == A.VAR and v.key == fp.result_local:
+                return "(*plc__ret)"
+            return f"l_{v.key}"
         if v.kind == A.VAR_IN_OUT or v.address:
             return f"(*self->{v.key})"
         return f"self->{v.key}"
@@ -539,8 +1114,11 @@ class Emitter:
             stride = at.size
             for ie, (lo, hi) in zip(e.indices, at.dims, strict=True):
                 stride //= hi - lo + 1
+                known = self.known_range(ie)
                 if isinstance(ie, A.Literal) and ie.kind == "int":
                     term = str(int(ie.value) - lo)
+                elif known is not None and lo <= known[0] and known[1] <= hi:
+                    term = f"((int32_t){self.expr(ie)} - {lo})"
                 else:
                     term = f"plc__idx({self.expr(ie)}, {lo}, {hi}, {self.pos(ie)})"
                 terms.append(term if stride == 1 else f"{term} * {stride}")
@@ -782,6 +1360,73 @@ class Emitter:
                 return f"(({ct})plc__{name.lower()}32((uint32_t){x}, (int32_t){n}, {t.bits}))"
             return f"(({ct})plc__{name.lower()}((uint64_t){x}, (int64_t){n}, {t.bits}))"
         raise AssertionError(f"std function {name}")
+
+
+def nodes(obj: object) -> list[A.Node]:
+    """Every AST node in obj (a node or a list of them), with a stack: A.walk, faster (no
+    dataclass field lists) and the nodes only."""
+    out: list[A.Node] = []
+    stack: list[object] = [obj]
+    node_t, seq_t = A.Node, (list, tuple)
+    while stack:
+        cur = stack.pop()
+        if isinstance(cur, node_t):
+            out.append(cur)
+            stack.extend(cur.__dict__.values())
+        elif isinstance(cur, seq_t):
+            stack.extend(cur)
+    return out
+
+
+def children(node: A.Node) -> Iterator[A.Node]:
+    """The AST nodes directly below node (inside its fields, lists and tuples included)."""
+    stack: list[object] = list(node.__dict__.values())
+    while stack:
+        cur = stack.pop()
+        if isinstance(cur, A.Node):
+            yield cur
+        elif isinstance(cur, list | tuple):
+            stack.extend(cur)
+
+
+def literal_int(e: A.Expr) -> int | None:
+    """The value of an integer literal, negated or not; None for anything else."""
+    if isinstance(e, A.Unary) and e.op == "-":
+        v = literal_int(e.operand)
+        return None if v is None else -v
+    if isinstance(e, A.Literal) and e.kind == "int" and not isinstance(e.value, bool):
+        return int(e.value)
+    return None
+
+
+def may_alias(a: tuple[object, str] | None, b: tuple[object, str] | None) -> bool:
+    """May two lvalues with these roots (Emitter.root_of) share storage?"""
+    if a is None or b is None or a[0] is b[0]:
+        return True
+    kinds = {a[1], b[1]}
+    return "fresh" not in kinds and kinds != {"direct"}
+
+
+def statement_lists(body: list[A.Stmt]) -> Iterator[list[A.Stmt]]:
+    """body and every statement list nested in it (branches, loop bodies), with a stack."""
+    stack = [body]
+    while stack:
+        sl = stack.pop()
+        yield sl
+        for st in sl:
+            if isinstance(st, A.If):
+                stack.extend(b for _, b in st.branches)
+            if isinstance(st, A.Case):
+                stack.extend(cl.body for cl in st.clauses)
+            if isinstance(st, A.If | A.Case) and st.orelse is not None:
+                stack.append(st.orelse)
+            if isinstance(st, A.For | A.While | A.Repeat):
+                stack.append(st.body)
+
+
+def is_scalar(t: Type) -> bool:
+    """Held in one C scalar (an elementary or enumerated type), not a STRUCT or ARRAY."""
+    return isinstance(t, ElemType | EnumType | LiteralType)
 
 
 def effective_init(t: Type, init: A.Init | None) -> A.Init | None:

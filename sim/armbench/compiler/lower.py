@@ -415,7 +415,9 @@ class Lowerer:
         if t == "binary_expression":
             return self.binary_chain(n)
         if t == "unary_expression":
-            return A.Unary(p, self.op_token(n), self.expr(self.field(n, "operand")))
+            operand = self.field(n, "operand")
+            return A.Unary(p, self.op_token(n), self.expr(operand),
+                           operand.type == "parenthesized_expression")
         if t == "member_access_expression":
             return A.Member(p, self.expr(self.field(n, "object")),
                             self.text(self.field(n, "member")))

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import tree_sitter as ts
 import tree_sitter_iec61131_3_st as st_grammar
 
+from .config_syntax import CONFIGURATION, RESOURCE, ConfigurationHints
 from .diagnostics import Diagnostics
 from .source import SourcePos
 
@@ -115,23 +116,28 @@ def parse_text(path: str, text: str, diags: Diagnostics) -> ParsedFile:
 def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
     if not pf.tree.root_node.has_error:
         return
-    stack = [pf.tree.root_node]
+    hints = ConfigurationHints(pf)
+    # each node with the innermost CONFIGURATION or RESOURCE around it (for E0111's hints)
+    stack: list[tuple[ts.Node, str | None]] = [(pf.tree.root_node, None)]
     while stack:
-        node = stack.pop()
+        node, context = stack.pop()
         if node.is_missing and is_array_default_hole(node):
             continue
-        if node.is_missing:
-            if node.type == ";" and _after_end_struct(pf.data, node.start_byte):
+        if node.is_missing or node.type == "ERROR":
+            hint = hints.hint(node, context)
+            if hint is not None:
+                diags.error(pf.pos(node), "E0111", hint)
+            elif node.type == "ERROR":
+                diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
+            elif node.type == ";" and _after_end_struct(pf.data, node.start_byte):
                 diags.error(pf.pos(node), "E0107", "missing ';' after END_STRUCT: MatIEC "
                             "needs END_STRUCT; inside TYPE ... END_TYPE")
             else:
                 diags.error(pf.pos(node), "E0100", f"syntax error: missing '{node.type}'")
             continue
-        if node.type == "ERROR":
-            diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
-            continue
         if node.has_error:
-            stack.extend(reversed(node.children))
+            inner = node.type if node.type in (CONFIGURATION, RESOURCE) else context
+            stack.extend((child, inner) for child in reversed(node.children))
 
 
 def is_array_default_hole(node: ts.Node) -> bool:

@@ -103,6 +103,7 @@ class ProgramCache:
         h.update(compiler_version())
         h.update(cffi.__version__.encode())
         h.update(",".join(sorted(target.dialects)).encode() + b"\0")
+        h.update(b"upload\0" if target.upload else b"soft PLC\0")  # an upload refuses more
         contents: dict[Path, bytes] = {}
         for kind, group in ((b"program", files), (b"library", library)):
             h.update(kind + len(group).to_bytes(8, "little"))

@@ -221,3 +221,73 @@ def codesys_family_reserves(name: str) -> Reservation | None:
 def reserved_anywhere(name: str) -> bool:
     """True when any dialect we target reserves ``name``."""
     return matiec_reserves(name) or codesys_family_reserves(name) is not None
+
+
+# ------------------------------------------------------------------ STruC++ (OpenPLC v4)
+# Measured on STruC++ 0.6.1 (fb7980f), its runtime headers and g++ 12 as the v4 runtime runs
+# it (-std=c++17 -DSTRUCPP_THREADED), one name at a time as a FUNCTION_BLOCK name and as a
+# FUNCTION_BLOCK's INT variable (tests/corpus/diagnostics/E0216_*). STruC++ upper-cases every
+# identifier, so C++'s own keywords (class, new, int, ...) are never hit.
+#
+# Its lexer's keywords that its declarations refuse as any name (`Public : INT;` is "Expected
+# END_VAR"), and those it takes as variables but not as POU or type names.
+_STRUCPP_KEYWORDS_ANY = """
+    DREF END_GET END_INTERFACE END_METHOD END_PROPERTY END_SET IMPLEMENTS PRIVATE PROPERTY
+    PROTECTED PUBLIC REFERENCE_TO SUPER THIS VAR_INST
+"""
+_STRUCPP_KEYWORDS_GLOBAL = "ABSTRACT FINAL GET SET"
+
+
+@dataclass(frozen=True)
+class _StrucppNames:
+    """The names STruC++ refuses, from the data files (each says where its names come from):
+    as any name (keywords, C macros, the runtime's IEC_* types) or as a global name only: a
+    POU, a TYPE or a VAR_GLOBAL, which STruC++ declares at namespace scope beside its
+    runtime's functions and its libraries' POUs."""
+
+    any_name: dict[str, str]
+    global_name: dict[str, str]
+
+
+def _data_names(file: str) -> list[tuple[str, str]]:
+    """(name, section) of a data file: `# section: ...` lines name the section of the names
+    below them."""
+    out: list[tuple[str, str]] = []
+    section = ""
+    for line in (DATA / file).read_text().splitlines():
+        line = line.strip()
+        if line.startswith("# section:"):
+            section = line.removeprefix("# section:").strip()
+        elif line and not line.startswith("#"):
+            out.append((line.upper(), section))
+    return out
+
+
+@cache
+def _strucpp_names() -> _StrucppNames:
+    any_name: dict[str, str] = {}
+    global_name: dict[str, str] = {}
+    for w in _STRUCPP_KEYWORDS_ANY.split():
+        any_name[w] = "a keyword of STruC++"
+    for w in _STRUCPP_KEYWORDS_GLOBAL.split():
+        global_name[w] = "a keyword of STruC++"
+    for name, _ in _data_names("strucpp-macros.txt"):
+        any_name.setdefault(name, "a C macro in STruC++'s C++")
+    for name, section in _data_names("strucpp-runtime-names.txt"):
+        target = any_name if section == "types" else global_name
+        target.setdefault(name, "a name of STruC++'s C++ runtime")
+    for name, section in _data_names("strucpp-library-names.txt"):
+        global_name.setdefault(name, f"a POU or type of STruC++'s library {section}")
+    return _StrucppNames(any_name, global_name)
+
+
+def strucpp_reserves(name: str, global_scope: bool) -> str | None:
+    """Why STruC++ refuses ``name`` (as a POU, type or global when ``global_scope``), or
+    None. Names MatIEC reserves are E0202 and C macros of E0204's list are E0204: those are
+    errors for every target and not repeated here."""
+    up = name.upper()
+    names = _strucpp_names()
+    why = names.any_name.get(up)
+    if why is None and global_scope:
+        why = names.global_name.get(up)
+    return why

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from . import ast as A
+from .config_syntax import configuration_form
 from .containment import check_containment, check_declaration_order, pou_holder, type_holder
 from .diagnostics import Diagnostics
 from .resolve_decl import Declarations
@@ -119,7 +120,8 @@ class Checker(Declarations):
             node = progs[0].node
             assert node is not None
             self.d.error(node.pos, "E0602", f"PROGRAM {progs[0].name} has no CONFIGURATION: "
-                         "OpenPLC's build needs Config0 with Res0 and a periodic TASK")
+                         "the bench and OpenPLC run a PROGRAM only as an instance under a "
+                         f"periodic TASK; add `{configuration_form(progs[0].name)}`")
         for sym in self.user_pous():
             self.check_body(sym)
         self.check_recursion()

@@ -6,6 +6,7 @@ holds the tables these methods fill.
 from __future__ import annotations
 
 from . import ast as A
+from .config_syntax import configuration_form, instance_form, task_form
 from .diagnostics import Diagnostics
 from .emit_c import split_address
 from .symbols import ConfigModel, InstanceModel, PouSym, TaskModel, VarSym
@@ -228,17 +229,13 @@ class Declarations:
 
     # ================================================================ configuration
     def configuration(self, c: A.Configuration) -> ConfigModel | None:
-        if c.name.upper() != "CONFIG0":
-            self.d.error(c.pos, "E0602", f"CONFIGURATION '{c.name}': OpenPLC's upload needs "
-                         "it to be named Config0")
+        # the names OpenPLC's upload needs (Config0, Res0) depend on the target: dialects.py
         if len(c.resources) != 1:
-            self.d.error(c.pos, "E0602", "OpenPLC needs exactly one RESOURCE (Res0)")
+            self.d.error(c.pos, "E0602", "the bench and OpenPLC run exactly one RESOURCE: "
+                         f"`{configuration_form()}`")
             if not c.resources:
                 return None
         res = c.resources[0]
-        if res.name.upper() != "RES0":
-            self.d.error(res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
-                         "upload needs it to be named Res0")
         for blk in c.globals + res.globals:
             self.check_block_mix(blk)
             for decl in blk.decls:
@@ -261,16 +258,22 @@ class Declarations:
             iv = 0
             if interval is None:
                 self.d.error(td.pos, "E0602", f"TASK {td.name} has no INTERVAL: the bench and "
-                             "OpenPLC run periodic tasks only")
+                             f"OpenPLC run periodic tasks only; write `{task_form(td.name)}`")
             elif isinstance(interval, A.Literal) and interval.kind == "time" and \
                     int(interval.value) > 0:
                 iv = int(interval.value)
             else:
-                self.d.error(interval.pos, "E0602", "INTERVAL must be a positive TIME literal")
+                self.d.error(interval.pos, "E0602", f"INTERVAL must be a positive TIME "
+                             f"literal: `{task_form(td.name)}`")
             pv = int(prio.value) if isinstance(prio, A.Literal) and prio.kind == "int" else 0
             tasks.append(TaskModel(td.name, iv, pv, td.pos))
         if not tasks:
-            self.d.error(res.pos, "E0602", "OpenPLC needs at least one periodic TASK")
+            first = res.programs[0] if res.programs else None
+            self.d.error(res.pos, "E0602", f"RESOURCE {res.name} declares no TASK: the bench "
+                         "and OpenPLC run a PROGRAM instance only under a periodic TASK; write "
+                         f"`{task_form()}` before "
+                         + (f"`{instance_form(first.name, prog=first.type_name)}`"
+                            if first is not None else "the PROGRAM instances"))
         task_names = {t.name.upper() for t in tasks}
         instances: list[InstanceModel] = []
         for pi in res.programs:
@@ -279,7 +282,10 @@ class Declarations:
                 self.d.error(pi.pos, "E0200", f"'{pi.type_name}' is not a PROGRAM")
                 continue
             if pi.task is None or pi.task.upper() not in task_names:
-                self.d.error(pi.pos, "E0602", f"program instance {pi.name} needs "
-                             "WITH <a declared TASK>")
+                given = "names no TASK" if pi.task is None else \
+                    f"names {pi.task}, which is not a TASK of RESOURCE {res.name}"
+                task = tasks[0].name if tasks else None
+                self.d.error(pi.pos, "E0602", f"program instance {pi.name} {given}: write "
+                             f"`{instance_form(pi.name, task, pi.type_name)}`")
             instances.append(InstanceModel(pi.name, pi.task, pou, pi.pos))
         return ConfigModel(c.name, res.name, self.globals, tasks, instances)

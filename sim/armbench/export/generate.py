@@ -19,6 +19,7 @@ from ..compiler.targets import OPENPLC_ONLY
 from ..locate import Project, default_project
 from .codesys import layout, render_register_map
 from .openplc import contents_lines, render_st
+from .openplc_v4 import V4ExportError, build_project, project_dir
 from .plcopen import build_xml
 from .sources import Source, dependency_order, display_name
 
@@ -45,13 +46,25 @@ def _version() -> str:
 
 @dataclass(frozen=True)
 class Export:
-    """The generated files, keyed by their path relative to the output folder."""
+    """The generated files, keyed by their path relative to the output folder; ``folders``
+    are written whole: a file in one that the export does not hold is stale (a v4 project
+    folder: the editor would load a POU file left over from a POU since removed)."""
 
     program: CheckedProgram
     sources: list[Source]
     files: dict[Path, bytes]
+    folders: tuple[Path, ...] = ()
+    warnings: tuple[str, ...] = ()  # what was left out, and why
+
+    def extra(self, out_dir: Path) -> list[Path]:
+        """Files in the export's folders under out_dir that the export does not hold."""
+        return sorted(p for d in self.folders if (out_dir / d).is_dir()
+                      for p in (out_dir / d).rglob("*")
+                      if p.is_file() and p.relative_to(out_dir) not in self.files)
 
     def write(self, out_dir: Path) -> list[Path]:
+        for path in self.extra(out_dir):
+            path.unlink()
         written = []
         for rel, data in self.files.items():
             path = out_dir / rel
@@ -69,7 +82,7 @@ class Export:
                 bad.append((path, "missing"))
             elif path.read_bytes() != data:
                 bad.append((path, "differs"))
-        return bad
+        return bad + [(path, "not in the export") for path in self.extra(out_dir)]
 
 
 def _shown(paths: Sequence[Path], most: int = 3) -> str:
@@ -157,9 +170,15 @@ def generate(paths: Sequence[str | Path] | None = None,
                             comment=codesys_comment,
                             addresses={id(p.decl): str(p.codesys) for p in placed})
     codesys_map = render_register_map(placed, name)
-    return Export(prog, sources, {st_file: st.encode("utf-8"), xml_file: xml,
-                                  codesys_file: codesys_xml,
-                                  map_file: codesys_map.encode("utf-8")})
+    files = {st_file: st.encode("utf-8"), xml_file: xml, codesys_file: codesys_xml,
+             map_file: codesys_map.encode("utf-8")}
+    # what the v4 editor cannot represent leaves out its project, not the other exports
+    try:
+        files |= build_project(prog, sources, name=name)
+    except V4ExportError as e:
+        return Export(prog, sources, files, warnings=(
+            f"no OpenPLC v4 project ({project_dir(name).as_posix()}/): {e}",))
+    return Export(prog, sources, files, folders=(project_dir(name),))
 
 
 def generate_library(paths: Sequence[str | Path] | None = None,

@@ -26,6 +26,7 @@ checked (with a warning that says so).
 from __future__ import annotations
 
 import contextlib
+import inspect
 import math
 import time
 from collections import Counter
@@ -48,6 +49,10 @@ Value = bool | int | float
 
 DEFAULT_SIGNATURE = "Signature"
 DEFAULT_SCAN_COUNTER = "ScanCount"
+# How long wait_until and wait_scans wait when the call says nothing: long enough for a few
+# hundred scans of a 10 ms task on a loaded machine, short enough that a condition that never
+# holds fails its test soon. The pytest plugin sets it from --plc-wait-timeout.
+DEFAULT_WAIT_TIMEOUT_S = 5.0
 
 _INTEGER_TYPES = frozenset({"INT", "UINT", "WORD", "DINT", "UDINT", "DWORD", "LINT", "ULINT",
                             "LWORD"})
@@ -280,15 +285,16 @@ class PlcProgram:
 def _analysed(given: Sequence[Path], library: bool
               ) -> tuple[CheckedProgram, tuple[Path, ...], tuple[str, ...]]:
     """The user's files checked with what they use of the armbench library, as ``armbench
-    check/run/serve`` do (so a program that runs there runs here): the checked program, the
-    files it was compiled from, and the library's note. Raises CompileFailed."""
+    run/serve`` do (so a program that runs there runs here; the names OpenPLC's upload needs
+    are not asked for): the checked program, the files it was compiled from, and the
+    library's note. Raises CompileFailed."""
     from ..compiler.diagnostics import CompileFailed
     from ..compiler.driver import analyse_program
-    from ..compiler.targets import OPENPLC_ONLY
+    from ..compiler.targets import SOFT_PLC
     from ..locate import select_library
 
     selection = select_library(given, library)
-    analysis = analyse_program(selection.given, selection.library, OPENPLC_ONLY)
+    analysis = analyse_program(selection.given, selection.library, SOFT_PLC)
     files = (*selection.given, *map(Path, analysis.library.files))
     if analysis.program is None:
         raise CompileFailed(analysis.diagnostics.sorted())
@@ -346,18 +352,22 @@ class PlcVariables(Mapping[str, Value]):
     one request), by the names and types the program declares.
 
     ``scans`` counts the PLC's scans when the program has no scan counter (the soft PLC's
-    own count); ``fault`` reports a soft PLC's fault so a wait does not run into a timeout.
+    own count); ``fault`` reports a soft PLC's fault so a wait does not run into a timeout;
+    ``wait_timeout_s`` is how long :meth:`wait_until` and :meth:`wait_scans` wait when the
+    call gives no ``timeout_s`` (default 5 s; the plugin's ``--plc-wait-timeout``).
     """
 
     def __init__(self, client: PlcClient, program: PlcProgram, *,
                  scans: Callable[[], int] | None = None,
                  fault: Callable[[], str | None] | None = None,
-                 owns_client: bool = False) -> None:
+                 owns_client: bool = False,
+                 wait_timeout_s: float = DEFAULT_WAIT_TIMEOUT_S) -> None:
         self.client = client
         self.program = program
         self._scans = scans
         self._fault = fault
         self._owns_client = owns_client
+        self.wait_timeout_s = _timeout(wait_timeout_s, "wait_timeout_s")
 
     def __enter__(self) -> PlcVariables:
         return self
@@ -437,32 +447,43 @@ class PlcVariables(Mapping[str, Value]):
             f"`{DEFAULT_SCAN_COUNTER} := {DEFAULT_SCAN_COUNTER} + 1;` in the program, or use "
             "wait_until")
 
-    def wait_scans(self, scans: int = 1, timeout_s: float = 5.0) -> None:
+    def wait_scans(self, scans: int = 1, timeout_s: float | None = None) -> None:
         """Return once the PLC has run ``scans`` whole scans after the call: after a write,
         ``wait_scans(1)`` means the program has run on the new value at least once (a write
-        lands between two scans). Raises TimeoutError when the PLC stops scanning."""
+        lands between two scans). Raises TimeoutError when the PLC has not run them within
+        ``timeout_s`` seconds (default :attr:`wait_timeout_s`, 5 s unless set: a PLC that
+        stopped scanning)."""
         if scans < 0:
             raise ValueError(f"cannot wait for {scans} scans")
+        limit = self.wait_timeout_s if timeout_s is None else _timeout(timeout_s, "timeout_s")
         counter = self.program.scan_counter
         modulus = 1 << (16 * counter.count) if counter is not None else 1 << 64
         start = self.scan_count()
-        deadline = time.monotonic() + timeout_s
+        deadline = time.monotonic() + limit
         pause = min(0.002, self.program.scan_interval_ns / 4e9)
         while (self.scan_count() - start) % modulus < scans:
             self._raise_fault()
             if time.monotonic() > deadline:
-                raise TimeoutError(f"the PLC ran fewer than {scans} scans in {timeout_s:g} s "
-                                   f"({self.program.name}: is it running?)")
+                raise TimeoutError(f"wait_scans({scans}) gave up after {limit:g} s: the PLC ran "
+                                   f"fewer scans ({self.program.name}: is it running?); "
+                                   f"{_raise_the_limit(limit)}")
             time.sleep(pause)
 
     def wait_until(self, name: str, condition: Callable[[Value], bool] | Value,
-                   timeout_s: float = 5.0) -> Value:
-        """Poll ``name`` until it equals ``condition`` (or ``condition(value)`` holds);
-        returns the value. Raises TimeoutError with the last value read."""
+                   timeout_s: float | None = None) -> Value:
+        """Read ``name`` again and again (a few times per scan) until it equals
+        ``condition``, or until ``condition(value)`` is true when ``condition`` is callable;
+        return the value that satisfied it.
+
+        Gives up after ``timeout_s`` seconds, by default :attr:`wait_timeout_s`: 5 s unless
+        the pytest plugin's ``--plc-wait-timeout S`` (or ``plc_wait_timeout = S`` in the ini
+        file) set another. Then it raises TimeoutError naming the variable, the condition and
+        the last value read. A soft PLC in FAULT ends the wait at once with ProgramError."""
+        limit = self.wait_timeout_s if timeout_s is None else _timeout(timeout_s, "timeout_s")
         test: Callable[[Value], bool] = (condition if callable(condition)
                                          else lambda v: v == condition)
         var = self.program.variable(name)
-        deadline = time.monotonic() + timeout_s
+        deadline = time.monotonic() + limit
         pause = min(0.005, self.program.scan_interval_ns / 2e9)
         while True:
             value = self.read_variable(var)
@@ -470,15 +491,66 @@ class PlcVariables(Mapping[str, Value]):
                 return value
             self._raise_fault()
             if time.monotonic() > deadline:
-                what = "the condition" if callable(condition) else repr(condition)
-                raise TimeoutError(f"{var.name} is {value!r} after {timeout_s:g} s, waiting "
-                                   f"for {what}")
+                what = describe_condition(condition) if callable(condition) else repr(condition)
+                raise TimeoutError(f"wait_until({var.name!r}, {what}) gave up after {limit:g} "
+                                   f"s: {var.name} last read {value!r}; "
+                                   f"{_raise_the_limit(limit)}")
             time.sleep(pause)
 
     def _raise_fault(self) -> None:
         reason = self._fault() if self._fault is not None else None
         if reason is not None:
             raise ProgramError(f"the soft PLC running {self.program.name} is in FAULT: {reason}")
+
+
+def _timeout(value: float, what: str) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{what} must be a number of seconds above 0, not {value!r}")
+    return float(value)
+
+
+def _raise_the_limit(limit: float) -> str:
+    more = f"{limit * 4:g}"
+    return (f"if it only needs longer, raise the limit: timeout_s={more} on this call, or for "
+            f"every wait the pytest option --plc-wait-timeout {more} (plc_wait_timeout = "
+            f"{more} in the ini file)")
+
+
+def describe_condition(condition: Callable[..., object]) -> str:
+    """A wait's predicate as the test spells it: a lambda's source (``lambda v: v > 50.0``),
+    else its name, with the file and line where it is defined."""
+    code = getattr(condition, "__code__", None)
+    where = f" ({Path(code.co_filename).name}:{code.co_firstlineno})" if code is not None else ""
+    name = getattr(condition, "__name__", None)
+    if name == "<lambda>":
+        return (_lambda_source(condition) or "a lambda") + where
+    if name is None:
+        return repr(condition)
+    return str(getattr(condition, "__qualname__", name)) + where
+
+
+def _lambda_source(fn: Callable[..., object]) -> str | None:
+    """The text of the first lambda on the line ``fn`` is defined on, up to the comma, the
+    closing bracket or the end of line that ends it (None when the source is not at hand)."""
+    try:
+        lines, _ = inspect.getsourcelines(fn)
+    except (OSError, TypeError):
+        return None
+    line = lines[0] if lines else ""
+    start = line.find("lambda")
+    if start < 0:
+        return None
+    text = line[start:].rstrip()
+    depth = 0
+    for i, ch in enumerate(text):
+        if ch in "([{":
+            depth += 1
+        elif ch in ")]}" or ch == ",":
+            if depth == 0:
+                return text[:i].strip()
+            if ch != ",":
+                depth -= 1
+    return text.strip()
 
 
 def _read_only(var: Variable) -> str:
@@ -601,15 +673,19 @@ class ProgramPlc:
     def address(self) -> tuple[str, int]:
         return self.host, self.port
 
-    def connect(self, timeout_s: float = 3.0) -> PlcVariables:
-        """Typed access on a connection of its own (closed by ``with`` or :meth:`close`)."""
+    def connect(self, timeout_s: float = 3.0,
+                wait_timeout_s: float = DEFAULT_WAIT_TIMEOUT_S) -> PlcVariables:
+        """Typed access on a connection of its own (closed by ``with`` or :meth:`close`);
+        ``timeout_s``: of one Modbus request, ``wait_timeout_s``: of its waits by default."""
         from ..softplc.modbus_client import PlcClient
 
+        _timeout(wait_timeout_s, "wait_timeout_s")  # before a connection is opened
         client = PlcClient(self.host, self.port, timeout_s=timeout_s)
         client.connect()
         v = PlcVariables(client, self.program, owns_client=True,
                          scans=self.scans if self.soft is not None else None,
-                         fault=self.fault if self.soft is not None else None)
+                         fault=self.fault if self.soft is not None else None,
+                         wait_timeout_s=wait_timeout_s)
         self._clients.append(v)
         return v
 

@@ -13,7 +13,9 @@ Your own program (``--plc-program FILE.st [FILE.st ...]``, or ``plc_program`` in
   loopback port (one per test module and xdist worker), with ``--plc-address HOST:PORT`` a
   real one, checked once per session: a PLC that does not answer, answers with another
   program's signature, or does not scan ends the session with one line.
-- ``plc_vars``: typed access by name, ``plc_vars["Level"] = 12.5``, ``plc_vars.wait_scans(1)``.
+- ``plc_vars``: typed access by name, ``plc_vars["Level"] = 12.5``, ``plc_vars.wait_scans(1)``,
+  ``plc_vars.wait_until("Pump", True)``; a wait gives up after 5 s (``timeout_s=`` on the call,
+  ``--plc-wait-timeout S`` or ``plc_wait_timeout = S`` in the ini file for every wait).
 - ``modbus``: a plain :class:`~armbench.softplc.modbus_client.PlcClient` connected to it.
 - ``soft_plc``: a factory, ``soft_plc("a.st", library=False)``, for tests that start soft PLCs
   of their own (``flavor="codesys"``: serving the CODESYS layout; ``flavor="openplc-v4"``:
@@ -58,7 +60,9 @@ it with exception 0x0B), the line says so and names the option that fits.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
+import gc
 import socket
 import sys
 import time
@@ -71,6 +75,9 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from .. import argtypes
+
+# armbench.harness.program.DEFAULT_WAIT_TIMEOUT_S, not imported: the plugin's import stays cheap
+DEFAULT_WAIT_TIMEOUT_S = 5.0
 
 # armbench.softplc.modbus_map.FLAVORS (name: layout), not imported: cheap
 FLAVORS = ("openplc", "openplc-v4", "codesys")
@@ -118,6 +125,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--plc-scan-counter", default=None, metavar="NAME",
                     help="the program's located variable it increments every scan "
                          "(default: ScanCount, when declared)")
+    group.addoption("--plc-wait-timeout", type=argtypes.positive_seconds, default=None,
+                    metavar="S",
+                    help="seconds plc_vars.wait_until and wait_scans wait before they fail, "
+                         f"unless the call gives timeout_s (default {DEFAULT_WAIT_TIMEOUT_S:g}; "
+                         "plc_wait_timeout in the ini file)")
     group.addoption("--sweep-progress", choices=("auto", "bar", "off"), default="auto",
                     help="progress bar of the points tests report with record_points "
                          "(auto: when stderr is a terminal)")
@@ -132,6 +144,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                   help="the program's signature variable (--plc-signature)")
     parser.addini("plc_scan_counter", default="",
                   help="the program's scan counter variable (--plc-scan-counter)")
+    parser.addini("plc_wait_timeout", default="",
+                  help="seconds plc_vars' waits wait before they fail (--plc-wait-timeout)")
 
 
 def plc_addresses(config: pytest.Config) -> tuple[tuple[str, int], ...]:
@@ -160,6 +174,21 @@ def flavor_name(config: pytest.Config) -> str:
         raise pytest.UsageError(f"plc_flavor (ini) is {ini!r}: choose "
                                 f"{', '.join(FLAVORS[:-1])} or {FLAVORS[-1]}")
     return ini or "openplc"
+
+
+def wait_timeout(config: pytest.Config) -> float:
+    """--plc-wait-timeout, else the ini file's plc_wait_timeout, else 5 s: how long the waits
+    of ``plc_vars`` wait when the call gives no timeout_s."""
+    given: float | None = config.getoption("--plc-wait-timeout")
+    if given is not None:
+        return given
+    ini = str(config.getini("plc_wait_timeout")).strip()
+    if not ini:
+        return DEFAULT_WAIT_TIMEOUT_S
+    try:
+        return argtypes.positive_seconds(ini)
+    except argparse.ArgumentTypeError as exc:
+        raise pytest.UsageError(f"plc_wait_timeout (ini) is {ini!r}: {exc}") from None
 
 
 def _flavor_hint(found: str) -> str:
@@ -229,6 +258,7 @@ def _xdist_workers(config: pytest.Config) -> int:
 def pytest_configure(config: pytest.Config) -> None:
     addresses = plc_addresses(config)
     flavor_name(config)  # a bad ini value is a usage error before any test
+    wait_timeout(config)
     program_options(config)  # a missing --plc-program file is a usage error before any test
     if hasattr(config, "workerinput"):
         return
@@ -241,6 +271,25 @@ def pytest_configure(config: pytest.Config) -> None:
             f"that moves, calibrates or counts the one arm, as most of tests/modbus does, then "
             f"fails when another worker moves it)")
     config.pluginmanager.register(_SweepReporter(config, max(workers, 1)), "armbench-sweep")
+
+
+@pytest.hookimpl(trylast=True)  # after the session's fixtures are torn down
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """In a pytest-xdist worker: free the session's garbage now, before the worker tells the
+    controller it has finished.
+
+    pytest collects garbage once more when it unconfigures, after that message, and the
+    controller then gives the worker 5 s to end (execnet) before it sends it a SIGINT. After a
+    long run a worker holds hundreds of thousands of objects in reference cycles (syntax trees
+    of compiled programs, hypothesis' search trees), which only a full collection frees; that
+    took over 5 s on a loaded 2-core machine, and the KeyboardInterrupt, landing in whatever
+    Python code ran during the collection (hypothesis' gc callback), printed a traceback
+    after a green run. Collected here, while the controller still waits for this worker, the
+    later collections have nothing to free, and frozen survivors are not even traversed."""
+    if not hasattr(session.config, "workerinput"):
+        return
+    gc.collect()
+    gc.freeze()
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
@@ -615,12 +664,15 @@ def modbus(program_plc: ProgramPlc) -> Iterator[PlcClient]:
 
 
 @pytest.fixture
-def plc_vars(program_plc: ProgramPlc) -> Iterator[PlcVariables]:
+def plc_vars(request: pytest.FixtureRequest, program_plc: ProgramPlc) -> Iterator[PlcVariables]:
     """Typed access to ``program_plc``'s located variables by name: ``plc_vars["Level"]``
     reads, ``plc_vars["Level"] = 12.5`` writes (type and address from the declaration),
     ``plc_vars.write(A=1, B=2.0)`` in one request, ``plc_vars.wait_scans(n)``,
-    ``plc_vars.wait_until(name, value_or_predicate)``."""
-    with program_plc.connect() as v:
+    ``plc_vars.wait_until(name, value_or_predicate)``. The waits give up after 5 s with a
+    TimeoutError naming the variable, the condition and the last value read: give
+    ``timeout_s=`` to one call, or ``--plc-wait-timeout S`` (``plc_wait_timeout = S`` in the
+    ini file) for every wait."""
+    with program_plc.connect(wait_timeout_s=wait_timeout(request.config)) as v:
         yield v
 
 

@@ -48,6 +48,7 @@ static __attribute__((noreturn, noinline, cold)) void plc__fault(const char *pos
 
 #ifdef ARMBENCH_NO_WATCHDOG
 #define PLC__WD(pos) ((void)0)
+#define PLC__WD_N(pos, n) ((void)0)
 static void plc__wd_begin(void) {}
 #else
 static int64_t plc__mono_ns(void) {
@@ -61,7 +62,20 @@ static __attribute__((noinline, cold)) void plc__wd_check(const char *pos) {
         plc__fault(pos, "watchdog: the scan ran past its time budget (endless loop?)");
 }
 #define PLC__WD(pos) do { if (__builtin_expect((++plc__wd_count & 0xFFFFu) == 0u, 0)) plc__wd_check(pos); } while (0)
+/* n (at most 65536) loop iterations counted at once, before a loop known to make exactly n:
+ * the clock is read when the count passes a multiple of 65536, as n PLC__WD would */
+#define PLC__WD_N(pos, n) do { uint32_t plc__wd_low = plc__wd_count & 0xFFFFu; plc__wd_count += (uint32_t)(n); if (__builtin_expect(plc__wd_low + (uint32_t)(n) > 0xFFFFu, 0)) plc__wd_check(pos); } while (0)
 #endif
+
+/* Copies and clears of STRUCTs and arrays: above PLC__BIG bytes through the C library's
+ * memmove/memset (out of line, so that the compiler cannot expand them back inline), which
+ * pick the fastest way the machine has; gcc's inline expansion of a struct copy (x86-64:
+ * `rep movsq`) took several times as long for the few hundred bytes of a profile. */
+#define PLC__BIG 128
+static __attribute__((noinline, unused)) void plc__copy_big(void *d, const void *s, size_t n) { memmove(d, s, n); }
+static __attribute__((noinline, unused)) void plc__zero_big(void *d, size_t n) { memset(d, 0, n); }
+#define PLC__COPY(d, s) do { if (sizeof(d) > PLC__BIG) plc__copy_big(&(d), &(s), sizeof(d)); else (d) = (s); } while (0)
+#define PLC__ZERO(x) do { if (sizeof(x) > PLC__BIG) plc__zero_big(&(x), sizeof(x)); else memset(&(x), 0, sizeof(x)); } while (0)
 
 static inline __attribute__((always_inline)) int32_t plc__idx(int64_t i, int64_t lo, int64_t hi, const char *pos) {
     if (__builtin_expect(i < lo || i > hi, 0)) plc__fault(pos, "array index out of bounds");
