@@ -15,8 +15,8 @@ from armbench.harness.pytest_plugin import flavor_name
 
 ONLY = {"openplc_only": "openplc", "openplc_v4_only": "openplc-v4"}
 WHERE = {"openplc": "OpenPLC v3's server (docs/modbus-parity.md)",
-         "openplc-v4": "OpenPLC v4's Modbus plugin (tests/softplc/test_v4_modbus_flavor.py pins its "
-                       "model)",
+         "openplc-v4": "OpenPLC v4's Modbus plugin (tests/softplc/test_v4_modbus_flavor.py "
+                       "pins its model)",
          "codesys": "the CODESYS layout's server, which follows the Modbus specification "
                     "(tests/softplc/test_softplc_codesys_device.py)"}
 
