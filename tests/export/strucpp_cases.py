@@ -763,65 +763,28 @@ def jerk_case() -> ValueCase:
     Ruckig."""
     import random
 
-    from unit.jerk_support import FAMILIES, AxisCase, axis_case
+    from unit.jerk_support import (
+        CROSS_AXES,
+        CROSS_DECLS,
+        CROSS_JOG,
+        CROSS_TIMES,
+        FAMILIES,
+        CrossOutputs,
+        axis_case,
+        cross_body,
+        cross_ruckig_generator,
+    )
 
     rng = random.Random(61131)
     singles = [axis_case(rng, family) for family in FAMILIES for _ in range(2)]
     fractions = (0.25, 0.5, 0.75, 1.0, 1.5)
 
-    axes = (AxisCase(0.5, 0.4, -0.3, 2.0, 0.2, 1.0, 2.0, 8.0),
-            AxisCase(-1.0, 0.0, 0.0, -3.0, 0.0, 0.7, 3.0, 5.0),
-            AxisCase(0.0, -0.2, 0.5, 0.25, 0.0, 2.0, 1.0, 3.0))
-    jog = AxisCase(0.0, 0.3, 0.0, 0.0, -0.8, 1.0, 2.0, 6.0)
-    times = (0.3, 1.1, 2.5)
-    lines = []
-    for name, values in (("CurP", [c.p0 for c in axes]), ("CurV", [c.v0 for c in axes]),
-                         ("CurA", [c.a0 for c in axes]), ("TgtP", [c.pf for c in axes]),
-                         ("TgtV", [c.vf for c in axes])):
-        lines.append(assign_list(name, values))
-    for k, c in enumerate(axes, 1):
-        lines.append(f"  Lim[{k}].MaxVel := {st_real(c.vmax)};\n"
-                     f"  Lim[{k}].MaxAcc := {st_real(c.amax)};\n"
-                     f"  Lim[{k}].MaxJerk := {st_real(c.jmax)};")
-    samples = []
-    for i, t in enumerate(times):
-        for k in range(1, 4):
-            samples.append(f"  Pt := MotionJerkAt(Prof := Plan.Profiles[{k}], "
-                           f"TimeS := {st_real(t)});\n  Samples[{i * 3 + k}] := Pt.Pos;")
-    body = "\n".join(lines) + f"""
-  Plan(Joints := 3, VelocityMode := FALSE, Sync := 0, CurrentPos := CurP, CurrentVel := CurV,
-       CurrentAcc := CurA, TargetPos := TgtP, TargetVel := TgtV, TargetAcc := Zero,
-       Limits := Lim);
-  Lreals[1] := Plan.Duration;
-  Ints[1] := Plan.ErrorId;
-{chr(10).join(samples)}
-  JogV[1] := {st_real(jog.v0)};
-  JogT[1] := {st_real(jog.vf)};
-  Lim[4].MaxVel := {st_real(jog.vmax)};
-  Lim[4].MaxAcc := {st_real(jog.amax)};
-  Lim[4].MaxJerk := {st_real(jog.jmax)};
-  Lim[1] := Lim[4];
-  Jog(Joints := 1, VelocityMode := TRUE, Sync := 0, CurrentPos := Zero, CurrentVel := JogV,
-      CurrentAcc := Zero, TargetPos := Zero, TargetVel := JogT, TargetAcc := Zero,
-      Limits := Lim);
-  Lreals[2] := Jog.Duration;
-  Pt := MotionJerkAt(Prof := Jog.Profiles[1], TimeS := Jog.Duration);
-  Lreals[3] := Pt.Pos;
-  FOR K := 1 TO 60 DO
-    IF K = 30 THEN
-      TgtP[2] := 1.0;
-    END_IF;
-    Gen(Enable := TRUE, CycleTime := 0.01, Joints := 3, VelocityMode := FALSE, Sync := 0,
-        TargetPos := TgtP, TargetVel := Zero, TargetAcc := Zero, Limits := Lim,
-        StartPos := CurP, StartVel := CurV, StartAcc := CurA);
-    IF Gen.NewPlan THEN
-      Ints[2] := Ints[2] + 1;
-    END_IF;
-  END_FOR;
-  Lreals[4] := Gen.Position[1];
-  Lreals[5] := Gen.Velocity[2];
-  Lreals[6] := Gen.Acceleration[3];
-""" + "\n".join(_single_plan(k, c) for k, c in enumerate(singles, 1)) + f"""
+    axes, jog, times = CROSS_AXES, CROSS_JOG, CROSS_TIMES
+    outputs = CrossOutputs("Lreals[1]", "Ints[1]", lambda i, k: f"Samples[{i * 3 + k}]",
+                           "Lreals[2]", "Lreals[3]", "Lreals[4]", "Lreals[5]", "Lreals[6]",
+                           "Ints[2]")
+    body = cross_body(st_real, outputs) + "\n" + "\n".join(
+        _single_plan(k, c) for k, c in enumerate(singles, 1)) + f"""
   FOR K := 1 TO {len(singles)} DO
     FOR J := 1 TO {len(fractions)} DO
       Pt := MotionJerkAt(Prof := Profs[K], TimeS := Durations[K] * Fracs[J]);
@@ -838,41 +801,8 @@ def jerk_case() -> ValueCase:
     Fracs : ARRAY[1..{len(fractions)}] OF LREAL;
     One : MotionJerkPlanner;
     J : INT;
-    Plan : MotionJerkPlanner;
-    Jog : MotionJerkPlanner;
-    Gen : MotionJerkGenerator;
-    Lim : MotionJerkLimitSet;
-    CurP : MotionJerkVector;
-    CurV : MotionJerkVector;
-    CurA : MotionJerkVector;
-    TgtP : MotionJerkVector;
-    TgtV : MotionJerkVector;
-    Zero : MotionJerkVector;
-    JogV : MotionJerkVector;
-    JogT : MotionJerkVector;
     TgtA : MotionJerkVector;
-    Pt : MotionJerkPoint;
-    K : INT;""", body)
-
-    def ruckig_generator() -> tuple[float, float, float]:
-        import ruckig
-
-        otg = ruckig.Ruckig(3, 0.01)
-        inp, out = ruckig.InputParameter(3), ruckig.OutputParameter(3)
-        inp.current_position = [c.p0 for c in axes]
-        inp.current_velocity = [c.v0 for c in axes]
-        inp.current_acceleration = [c.a0 for c in axes]
-        target = [c.pf for c in axes]
-        inp.max_velocity = [jog.vmax] + [c.vmax for c in axes[1:]]
-        inp.max_acceleration = [jog.amax] + [c.amax for c in axes[1:]]
-        inp.max_jerk = [jog.jmax] + [c.jmax for c in axes[1:]]
-        for k in range(1, 61):
-            if k == 30:
-                target[1] = 1.0
-            inp.target_position = target
-            otg.update(inp, out)
-            out.pass_to_input(inp)
-        return out.new_position[0], out.new_velocity[1], out.new_acceleration[2]
+{CROSS_DECLS}""", body)
 
     def reference(v: Values) -> list[RefCheck]:
         from unit.jerk_support import expected_error_ids, pos_tolerance, ruckig_plan
@@ -889,7 +819,7 @@ def jerk_case() -> ValueCase:
         jog_ref = ruckig_plan((jog,), interface="Velocity")
         jog_dur = abs(v["LREALS"][1] - jog_ref.duration) / jog_ref.duration
         pos = worse(pos, abs(v["LREALS"][2] - jog_ref.at(jog_ref.duration)[0][0]))
-        gen = worse(*(abs(a - b) for a, b in zip(v["LREALS"][3:6], ruckig_generator(),
+        gen = worse(*(abs(a - b) for a, b in zip(v["LREALS"][3:6], cross_ruckig_generator(),
                                                   strict=True)))
         single_dur = single_pos = 0.0
         for k, case in enumerate(singles):

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import random
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -568,3 +568,119 @@ def collinear_case(rng: random.Random, dofs: int, moving: bool) -> MultiCase:
         amax = max(amax, abs(k * base.a0) * 1.5)
         axes.append(AxisCase(0.0, k * base.v0, k * base.a0, k * d, 0.0, vmax, amax, jmax))
     return MultiCase(tuple(axes), "phase_moving" if moving else "phase_rest")
+
+
+# ------------------------------------------------------------------ the compiler cross-check
+#: the program both compiler cross-checks (MatIEC in test_motion_jerk_matiec.py, STruC++ in
+#: tests/export/strucpp_cases.py) run: three axes planned together from a moving start to a
+#: target velocity, sampled at CROSS_TIMES; a velocity-interface jog; 60 generator cycles
+#: with a target change at cycle 30
+CROSS_AXES = (AxisCase(0.5, 0.4, -0.3, 2.0, 0.2, 1.0, 2.0, 8.0),
+              AxisCase(-1.0, 0.0, 0.0, -3.0, 0.0, 0.7, 3.0, 5.0),
+              AxisCase(0.0, -0.2, 0.5, 0.25, 0.0, 2.0, 1.0, 3.0))
+CROSS_JOG = AxisCase(0.0, 0.3, 0.0, 0.0, -0.8, 1.0, 2.0, 6.0)
+CROSS_TIMES = (0.3, 1.1, 2.5)
+
+#: the declarations CROSS_BODY needs, one a line, indented for a VAR block
+CROSS_DECLS = """    Plan : MotionJerkPlanner;
+    Jog : MotionJerkPlanner;
+    Gen : MotionJerkGenerator;
+    Lim : MotionJerkLimitSet;
+    CurP : MotionJerkVector;
+    CurV : MotionJerkVector;
+    CurA : MotionJerkVector;
+    TgtP : MotionJerkVector;
+    TgtV : MotionJerkVector;
+    Zero : MotionJerkVector;
+    JogV : MotionJerkVector;
+    JogT : MotionJerkVector;
+    Pt : MotionJerkPoint;
+    K : INT;"""
+
+
+@dataclass(frozen=True)
+class CrossOutputs:
+    """Where the cross-check program stores its results: ST variables (or array elements)
+    named by the caller. ``sample`` takes (time index from 0, axis from 1)."""
+
+    duration: str
+    error_id: str
+    sample: Callable[[int, int], str]
+    jog_duration: str
+    jog_end: str
+    gen_p1: str
+    gen_v2: str
+    gen_a3: str
+    plans: str
+
+
+def cross_body(lit: Any, out: CrossOutputs) -> str:
+    """The statements of the cross-check program, indented by two spaces; ``lit`` spells a
+    float as an ST literal."""
+    lines = []
+    for name, values in (("CurP", [c.p0 for c in CROSS_AXES]),
+                         ("CurV", [c.v0 for c in CROSS_AXES]),
+                         ("CurA", [c.a0 for c in CROSS_AXES]),
+                         ("TgtP", [c.pf for c in CROSS_AXES]),
+                         ("TgtV", [c.vf for c in CROSS_AXES])):
+        lines += [f"  {name}[{k}] := {lit(v)};" for k, v in enumerate(values, 1)]
+    for k, c in enumerate(CROSS_AXES, 1):
+        lines += [f"  Lim[{k}].MaxVel := {lit(c.vmax)};", f"  Lim[{k}].MaxAcc := {lit(c.amax)};",
+                  f"  Lim[{k}].MaxJerk := {lit(c.jmax)};"]
+    lines += ["  Plan(Joints := 3, VelocityMode := FALSE, Sync := 0, CurrentPos := CurP,",
+              "       CurrentVel := CurV, CurrentAcc := CurA, TargetPos := TgtP,",
+              "       TargetVel := TgtV, TargetAcc := Zero, Limits := Lim);",
+              f"  {out.duration} := Plan.Duration;", f"  {out.error_id} := Plan.ErrorId;"]
+    for i, t in enumerate(CROSS_TIMES):
+        for k in range(1, 4):
+            lines += [f"  Pt := MotionJerkAt(Prof := Plan.Profiles[{k}], TimeS := {lit(t)});",
+                      f"  {out.sample(i, k)} := Pt.Pos;"]
+    j = CROSS_JOG
+    lines += [f"  JogV[1] := {lit(j.v0)};", f"  JogT[1] := {lit(j.vf)};",
+              f"  Lim[4].MaxVel := {lit(j.vmax)};", f"  Lim[4].MaxAcc := {lit(j.amax)};",
+              f"  Lim[4].MaxJerk := {lit(j.jmax)};", "  Lim[1] := Lim[4];",
+              "  Jog(Joints := 1, VelocityMode := TRUE, Sync := 0, CurrentPos := Zero,",
+              "      CurrentVel := JogV, CurrentAcc := Zero, TargetPos := Zero,",
+              "      TargetVel := JogT, TargetAcc := Zero, Limits := Lim);",
+              f"  {out.jog_duration} := Jog.Duration;",
+              "  Pt := MotionJerkAt(Prof := Jog.Profiles[1], TimeS := Jog.Duration);",
+              f"  {out.jog_end} := Pt.Pos;",
+              "  FOR K := 1 TO 60 DO",
+              "    IF K = 30 THEN",
+              "      TgtP[2] := 1.0;",
+              "    END_IF;",
+              "    Gen(Enable := TRUE, CycleTime := 0.01, Joints := 3, VelocityMode := FALSE,",
+              "        Sync := 0, TargetPos := TgtP, TargetVel := Zero, TargetAcc := Zero,",
+              "        Limits := Lim, StartPos := CurP, StartVel := CurV, StartAcc := CurA);",
+              "    IF Gen.NewPlan THEN",
+              f"      {out.plans} := {out.plans} + 1;",
+              "    END_IF;",
+              "  END_FOR;",
+              f"  {out.gen_p1} := Gen.Position[1];",
+              f"  {out.gen_v2} := Gen.Velocity[2];",
+              f"  {out.gen_a3} := Gen.Acceleration[3];"]
+    return "\n".join(lines)
+
+
+def cross_ruckig_generator() -> tuple[float, float, float]:
+    """Ruckig.update over the cross-check program's 60 cycles (the jog's limits on axis 1,
+    as the program sets Lim[1] := Lim[4] before starting the generator): position of axis
+    1, velocity of axis 2, acceleration of axis 3."""
+    import ruckig
+
+    otg = ruckig.Ruckig(3, 0.01)
+    inp, out = ruckig.InputParameter(3), ruckig.OutputParameter(3)
+    inp.current_position = [c.p0 for c in CROSS_AXES]
+    inp.current_velocity = [c.v0 for c in CROSS_AXES]
+    inp.current_acceleration = [c.a0 for c in CROSS_AXES]
+    target = [c.pf for c in CROSS_AXES]
+    inp.max_velocity = [CROSS_JOG.vmax] + [c.vmax for c in CROSS_AXES[1:]]
+    inp.max_acceleration = [CROSS_JOG.amax] + [c.amax for c in CROSS_AXES[1:]]
+    inp.max_jerk = [CROSS_JOG.jmax] + [c.jmax for c in CROSS_AXES[1:]]
+    for k in range(1, 61):
+        if k == 30:
+            target[1] = 1.0
+        inp.target_position = target
+        otg.update(inp, out)
+        out.pass_to_input(inp)
+    return out.new_position[0], out.new_velocity[1], out.new_acceleration[2]

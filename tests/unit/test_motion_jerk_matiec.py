@@ -20,10 +20,21 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import textwrap
 from pathlib import Path
 
 import pytest
-from jerk_support import AxisCase, ruckig_plan
+from jerk_support import (
+    CROSS_AXES,
+    CROSS_DECLS,
+    CROSS_JOG,
+    CROSS_TIMES,
+    AxisCase,
+    CrossOutputs,
+    cross_body,
+    cross_ruckig_generator,
+    ruckig_plan,
+)
 from matiec_run import SKIP_REASON, first_scan_both, run_tool
 
 REPO = Path(__file__).resolve().parents[2]
@@ -32,11 +43,7 @@ FILES = ["MotionJerkTypes.st", "MotionJerkRoots.st", "MotionJerkProfile.st",
          "MotionJerkStep1.st", "MotionJerkStep2.st", "MotionJerkVelocity.st",
          "MotionJerkSync.st", "MotionJerkOnline.st"]
 
-AXES = (AxisCase(0.5, 0.4, -0.3, 2.0, 0.2, 1.0, 2.0, 8.0),
-        AxisCase(-1.0, 0.0, 0.0, -3.0, 0.0, 0.7, 3.0, 5.0),
-        AxisCase(0.0, -0.2, 0.5, 0.25, 0.0, 2.0, 1.0, 3.0))
-JOG = AxisCase(0.0, 0.3, 0.0, 0.0, -0.8, 1.0, 2.0, 6.0)
-TIMES = (0.3, 1.1, 2.5)
+AXES, JOG, TIMES = CROSS_AXES, CROSS_JOG, CROSS_TIMES
 
 
 def _check_tool() -> Path | None:
@@ -49,39 +56,14 @@ def _lreal(x: float) -> str:
 
 
 def _program() -> str:
-    def vec(name: str, values: list[float]) -> str:
-        return "\n".join(f"    {name}[{k}] := {_lreal(v)};" for k, v in enumerate(values, 1))
-
-    lines = [vec("CurP", [c.p0 for c in AXES]), vec("CurV", [c.v0 for c in AXES]),
-             vec("CurA", [c.a0 for c in AXES]), vec("TgtP", [c.pf for c in AXES]),
-             vec("TgtV", [c.vf for c in AXES])]
-    for k, c in enumerate(AXES, 1):
-        lines.append(f"    Lim[{k}].MaxVel := {_lreal(c.vmax)};\n"
-                     f"    Lim[{k}].MaxAcc := {_lreal(c.amax)};\n"
-                     f"    Lim[{k}].MaxJerk := {_lreal(c.jmax)};")
-    samples = []
-    for i, t in enumerate(TIMES):
-        for k in range(1, 4):
-            samples.append(f"    Pt := MotionJerkAt(Prof := Plan.Profiles[{k}], "
-                           f"TimeS := {_lreal(t)});\n    S{i}A{k} := Pt.Pos;")
+    outputs = CrossOutputs("Dur", "Err", lambda i, k: f"S{i}A{k}", "JogDur", "JogEnd",
+                           "GenP1", "GenV2", "GenA3", "Plans")
+    body = textwrap.indent(cross_body(_lreal, outputs), "  ")
     decl_samples = "\n".join(f"    S{i}A{k} : LREAL;" for i in range(len(TIMES))
                              for k in range(1, 4))
     return f"""PROGRAM JerkMain
   VAR
-    Plan : MotionJerkPlanner;
-    Jog : MotionJerkPlanner;
-    Gen : MotionJerkGenerator;
-    Lim : MotionJerkLimitSet;
-    CurP : MotionJerkVector;
-    CurV : MotionJerkVector;
-    CurA : MotionJerkVector;
-    TgtP : MotionJerkVector;
-    TgtV : MotionJerkVector;
-    Zero : MotionJerkVector;
-    JogV : MotionJerkVector;
-    JogT : MotionJerkVector;
-    Pt : MotionJerkPoint;
-    K : INT;
+{CROSS_DECLS}
     Dur : LREAL;
     JogDur : LREAL;
     JogEnd : LREAL;
@@ -94,39 +76,7 @@ def _program() -> str:
     Done : BOOL;
   END_VAR
   IF NOT Done THEN
-{chr(10).join(lines)}
-    Plan(Joints := 3, VelocityMode := FALSE, Sync := 0, CurrentPos := CurP,
-         CurrentVel := CurV, CurrentAcc := CurA, TargetPos := TgtP, TargetVel := TgtV,
-         TargetAcc := Zero, Limits := Lim);
-    Dur := Plan.Duration;
-    Err := Plan.ErrorId;
-{chr(10).join(samples)}
-    JogV[1] := {_lreal(JOG.v0)};
-    JogT[1] := {_lreal(JOG.vf)};
-    Lim[4].MaxVel := {_lreal(JOG.vmax)};
-    Lim[4].MaxAcc := {_lreal(JOG.amax)};
-    Lim[4].MaxJerk := {_lreal(JOG.jmax)};
-    Lim[1] := Lim[4];
-    Jog(Joints := 1, VelocityMode := TRUE, Sync := 0, CurrentPos := Zero,
-        CurrentVel := JogV, CurrentAcc := Zero, TargetPos := Zero, TargetVel := JogT,
-        TargetAcc := Zero, Limits := Lim);
-    JogDur := Jog.Duration;
-    Pt := MotionJerkAt(Prof := Jog.Profiles[1], TimeS := JogDur);
-    JogEnd := Pt.Pos;
-    FOR K := 1 TO 60 DO
-      IF K = 30 THEN
-        TgtP[2] := 1.0;
-      END_IF;
-      Gen(Enable := TRUE, CycleTime := 0.01, Joints := 3, VelocityMode := FALSE, Sync := 0,
-          TargetPos := TgtP, TargetVel := Zero, TargetAcc := Zero, Limits := Lim,
-          StartPos := CurP, StartVel := CurV, StartAcc := CurA);
-      IF Gen.NewPlan THEN
-        Plans := Plans + 1;
-      END_IF;
-    END_FOR;
-    GenP1 := Gen.Position[1];
-    GenV2 := Gen.Velocity[2];
-    GenA3 := Gen.Acceleration[3];
+{body}
     Done := TRUE;
   END_IF;
 END_PROGRAM
@@ -138,29 +88,6 @@ CONFIGURATION Config0
   END_RESOURCE
 END_CONFIGURATION
 """
-
-
-def _ruckig_generator() -> tuple[float, float, float]:
-    """Ruckig.update over the program's 60 scans (the jog axis' limits on axis 1, as the
-    program sets Lim[1] := Lim[4] before starting the generator)."""
-    import ruckig
-
-    otg = ruckig.Ruckig(3, 0.01)
-    inp, out = ruckig.InputParameter(3), ruckig.OutputParameter(3)
-    inp.current_position = [c.p0 for c in AXES]
-    inp.current_velocity = [c.v0 for c in AXES]
-    inp.current_acceleration = [c.a0 for c in AXES]
-    target = [c.pf for c in AXES]
-    inp.max_velocity = [JOG.vmax] + [c.vmax for c in AXES[1:]]
-    inp.max_acceleration = [JOG.amax] + [c.amax for c in AXES[1:]]
-    inp.max_jerk = [JOG.jmax] + [c.jmax for c in AXES[1:]]
-    for k in range(1, 61):
-        if k == 30:
-            target[1] = 1.0
-        inp.target_position = target
-        otg.update(inp, out)
-        out.pass_to_input(inp)
-    return out.new_position[0], out.new_velocity[1], out.new_acceleration[2]
 
 
 @pytest.mark.skipif(run_tool() is None, reason=SKIP_REASON)
@@ -182,7 +109,7 @@ def test_real_matiec_runs_the_planner_and_generator(tmp_path: Path) -> None:
     jog = ruckig_plan((JOG,), interface="Velocity")
     assert float(real["JOGDUR"]) == pytest.approx(jog.duration, rel=1e-12)
     assert float(real["JOGEND"]) == pytest.approx(jog.at(jog.duration)[0][0], abs=1e-9)
-    p1, v2, a3 = _ruckig_generator()
+    p1, v2, a3 = cross_ruckig_generator()
     assert float(real["GENP1"]) == pytest.approx(p1, abs=1e-9)
     assert float(real["GENV2"]) == pytest.approx(v2, abs=1e-9)
     assert float(real["GENA3"]) == pytest.approx(a3, abs=1e-9)
