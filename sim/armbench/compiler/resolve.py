@@ -427,6 +427,8 @@ class Checker(Declarations):
                                  f"({lo}..{hi})")
         elif lit_t is REAL_LIT and t.is_real:
             pass
+        elif lit_t is BOOL and t is BOOL:
+            pass
         elif lit_t is INT_LIT and t.is_real:
             self.d.error(e.pos, "E0301", f"integer literal where {t.name} is needed: "
                          "MatIEC has no implicit conversion")
