@@ -19,6 +19,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import pytest
+from fast_plc import FastPlc
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
@@ -49,9 +50,11 @@ from stepped_controller import (
     load_controller,
 )
 
+from armbench.controller_client import ERR_DRIVER_FAULT, ERR_OK, ArmControllerClient
 from armbench.softplc.loader import LoadedProgram
 
-DRIVER_FAULT = 111  # ArmControllerErrors.DriverFault
+DRIVER_FAULT = 111  # ArmControllerErrors.DriverFault (Controller.st RESULT CODES)
+NOT_MOTION_OWNER = 108
 FAULT_BIT = 1  # %IX0.1 in the image's discrete inputs (one byte per bit)
 
 
@@ -183,7 +186,8 @@ def test_a_command_in_the_scan_the_fault_rises_is_refused(bench: Bench) -> None:
     assert ctl.result_of(move) == DRIVER_FAULT and ctl.result_of(update) == DRIVER_FAULT
     assert ctl.pulses() == before
     assert motion_status(ctl) == (0, 1, DRIVER_FAULT)
-    assert bench.a.command(JOG_STOP) != OK or ctl.pulses() == before
+    assert bench.a.command(JOG_STOP) == NOT_MOTION_OWNER  # the fault ended the jog already
+    assert ctl.pulses() == before
     bench.fault(False)
     ctl.step(100)
     assert ctl.pulses() == before
@@ -367,3 +371,26 @@ def test_faults_interleaved_with_commands(program: LoadedProgram) -> None:
     machine.settings = settings(max_examples=40, stateful_step_count=30, deadline=None,
                                 suppress_health_check=[HealthCheck.too_slow])
     machine().runTest()
+
+
+def test_a_client_over_modbus_sees_the_fault(fast_controller: FastPlc,
+                                             ctl: ArmControllerClient) -> None:
+    """The client library's view over the fast PLC's Modbus server: the command's Result and
+    Status.driver_fault/driver_faults."""
+    image, lock = fast_controller.plc.image, fast_controller.plc.lock
+    before = ctl.status().driver_faults
+    assert ctl.move_joints(0.0, 80.0, 60.0).error_id == ERR_OK
+    with lock:
+        image.ix[FAULT_BIT] = 1
+    try:
+        ctl.wait_scans(3)
+        status = ctl.status()
+        assert status.driver_fault and status.driver_faults == before + 1
+        assert ctl.move_joints(10.0, 70.0, 65.0).error_id == ERR_DRIVER_FAULT
+        assert not ctl.motion().busy
+    finally:
+        with lock:
+            image.ix[FAULT_BIT] = 0
+    ctl.wait_scans(3)
+    assert not ctl.status().driver_fault
+    assert ctl.move_joints(10.0, 70.0, 65.0, wait=True).error_id == ERR_OK
