@@ -223,6 +223,27 @@ def test_every_command_that_moves_is_refused_while_the_fault_stands(bench: Bench
     bench.quiet()
 
 
+def test_a_fault_while_relaxed_leaves_no_catch_up(bench: Bench) -> None:
+    ctl = bench.ctl
+    assert bench.a.command(MOVE_JOINTS, args=(40.0, 50.0, 100.0)) == OK
+    ctl.step(20)
+    assert bench.a.command(RELAX) == OK  # relaxed in the middle of a move
+    ctl.step(5)
+    bench.fault(True)
+    ctl.step(20)
+    assert bench.b.command(MOVE_JOINTS, args=(-10.0, 70.0, 65.0)) == DRIVER_FAULT
+    assert bench.a.command(SET_GRIPPER, args=(20.0,)) == DRIVER_FAULT
+    assert ctl.pulses() == (0.0,) * len(CHANNELS)
+    bench.fault(False)
+    ctl.step(20)
+    assert ctl.pulses() == (0.0,) * len(CHANNELS)
+    # powered again at the pulse it was relaxed at (the monitor's re-power rule), at rest
+    assert bench.b.command(MOVE_JOINTS, args=(-10.0, 70.0, 65.0)) == OK
+    ctl.step(300)
+    bench.quiet()
+    assert int(ctl.read("DRIVERFAULTS")) == 1
+
+
 def test_a_fault_at_power_up_refuses_motions_but_not_init_pwm(bench: Bench) -> None:
     ctl = bench.ctl
     ctl.reset()
