@@ -107,6 +107,7 @@ ERR_BAD_CHECK = _K["CtlErr.BadCheck"]
 ERR_NOT_BATCH_OWNER = _K["CtlErr.NotBatchOwner"]
 ERR_NOT_MOTION_OWNER = _K["CtlErr.NotMotionOwner"]
 ERR_JOG_TIMEOUT = _K["CtlErr.JogTimeout"]
+ERR_DRIVER_FAULT = _K["CtlErr.DriverFault"]
 ERR_BAD_PARAMETER = _K["Err.BadParameter"]
 ERR_TOOL_OUT_OF_PLANE = _K["FiveErr.ToolOutOfPlane"]
 ERR_TOOL_VECTOR_ZERO = _K["FiveErr.ToolVectorZero"]
@@ -131,7 +132,8 @@ _ANSWER_FIELDS = ("Owner", "AckSeq", "Result", "AckCheck")
 _STATUS_FIELDS = ("ScanCount", "CtlState", "BusyMailbox", "CommandsAnswered",
                   "CommandsIgnored", "BaseDeg", "ShoulderDeg", "ElbowDeg", "EchoX", "EchoY",
                   "EchoZ", "BasePulseUs", "ShoulderPulseUs", "ElbowPulseUs", "PwmPrescale",
-                  "PwmReady", "InitFrames", "BatchOwner", "BatchCount", "BatchFailures")
+                  "PwmReady", "InitFrames", "BatchOwner", "BatchCount", "BatchFailures",
+                  "DriverFaultHeld", "DriverFaults")
 _MOTION_FIELDS = ("MotionScan", "MotionKind", "MotionBusy", "MotionDone", "MotionError",
                   "MotionErrorId", "MotionAborted", "MotionMailbox", "MotionSession",
                   "MotionSeq", "MotionStarts", "MotionProgress", "MotionDeviation",
@@ -240,6 +242,8 @@ class Status:
     batch_owner: int
     batch_count: int
     batch_failures: int
+    driver_fault: bool  # PwmDriverFault holds the arm: what would move is ERR_DRIVER_FAULT
+    driver_faults: int  # the fault's rising edges the controller saw since start
     ticket: MotionTicket | None = None
 
 
@@ -707,6 +711,7 @@ class ArmControllerClient:
             prescale=int(f["PwmPrescale"]), pwm_ready=bool(f["PwmReady"]),
             init_frames=int(f["InitFrames"]), batch_owner=int(f["BatchOwner"]),
             batch_count=int(f["BatchCount"]), batch_failures=int(f["BatchFailures"]),
+            driver_fault=bool(f["DriverFaultHeld"]), driver_faults=int(f["DriverFaults"]),
         )
 
     def scan_count(self) -> int:

@@ -65,6 +65,8 @@ COPY_OUT: Final[tuple[Section, ...]] = (
         ("BatchOwner", "Batch.Holder"),
         ("BatchCount", "Batch.Count"),
         ("BatchFailures", "Batch.Failures"),
+        ("DriverFaultHeld", "BOOL_TO_DINT(Motion.FaultHeld)"),
+        ("DriverFaults", "Motion.FaultEdges"),
     )),
     ("calibration read-back", tuple(c for j in ARM for c in _calibration(j))),
     ("motion progress and setpoints", (
@@ -180,5 +182,8 @@ COPY_IN: Final[tuple[Section, ...]] = (
         *((f"ImuRaw.{w}", f"Imu{w}") for w in
           ("GyroX", "GyroY", "GyroZ", "AccelX", "AccelY", "AccelZ", "MagX", "MagY", "MagZ")),
         ("ImuSeq", "ImuSampleSeq"),
+    )),
+    ("the PCA9685 driver's fault bit", (
+        ("FaultIn", "PwmDriverFault"),
     )),
 )

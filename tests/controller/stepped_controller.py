@@ -39,6 +39,7 @@ from armbench.softplc.scan import SoftPlc
 TASK_NS: Final = 10_000_000
 DT: Final = 0.01  # s, the controller's task interval
 MAILBOXES: Final = 16
+DRIVER_FAULT_BIT: Final = 1  # PwmDriverFault, %IX0.1: the image's discrete inputs, a byte a bit
 
 # Command codes of the protocol (Controller.st header, COMMANDS).
 MOVE_XYZ, MOVE_JOINTS, INIT_PWM, RELAX, SET_CALIBRATION = 1, 2, 3, 4, 5
@@ -453,7 +454,9 @@ class OutputMonitor:
     """Promise A, every scan: per channel the step |P_k - P_(k-1)| <= Vus*dt, the step change
     <= Aus*dt^2 (steps of off or just powered scans count as 0), a re-powered channel starts
     from its last emitted pulse (at power-up: the servo centre), P is 0 or inside the
-    calibration's pulse range, and no REAL output register is NaN/Inf."""
+    calibration's pulse range, and no REAL output register is NaN/Inf. In a scan that read
+    PwmDriverFault (%IX0.1) TRUE a powered pulse does not move at all (the stage freezes:
+    the one place where the step may change by more than Aus*dt^2, to 0)."""
 
     violations: list[Violation] = field(default_factory=list)
     figures: list[ChannelFigures] = field(
@@ -500,6 +503,7 @@ class OutputMonitor:
             self.prev = [0.0] * len(CHANNELS)
             self.held = [self.centre(ctl, c) for c in range(len(CHANNELS))]
         cmds: str | None = None
+        frozen = bool(ctl.program.image.ix[DRIVER_FAULT_BIT])
 
         def commands() -> str:
             nonlocal cmds
@@ -546,7 +550,10 @@ class OutputMonitor:
                 if abs(step) > vstep + _tol(vstep, p):
                     self._add(Violation(ctl.scan, name, f"step {prev:.6g} -> {p:.6g} us",
                                         step, vstep, commands()))
-                if abs(change) > achange + _tol(achange, p):
+                if frozen and step != 0.0:
+                    self._add(Violation(ctl.scan, name, f"moved under PwmDriverFault {prev:.6g}"
+                                        f" -> {p:.6g} us", step, 0.0, commands()))
+                elif abs(change) > achange + _tol(achange, p) and not frozen:
                     self._add(Violation(ctl.scan, name,
                                         f"step change {self.steps[c]:.6g} -> {step:.6g} us",
                                         change, achange, commands()))
