@@ -449,3 +449,19 @@ def test_doc_asks_for_a_64_bit_os() -> None:
     before the first step."""
     text = doc_text()
     assert "Raspberry Pi OS 64-bit" in text[: text.index("## 1.")]
+
+
+def test_doc_plugin_install_is_the_one_tests_plugin_v4_runs() -> None:
+    """Step 3's mkdir and copy are the plugin README's, which tests/plugin_v4 runs in a
+    runtime tree (here with sudo, the runtime's checkout being root's)."""
+    readme = (PLUGIN_DIR / "README.md").read_text("utf-8")
+    blocks = [b for b in re.findall(r"```sh\n(.*?)```", readme, re.S)
+              if re.search(r"^cp ", b, re.M)]
+    assert len(blocks) == 1, blocks
+    theirs = [ln.strip() for ln in blocks[0].splitlines() if ln.strip()]
+    ours = [c.removeprefix("sudo ") for c in shell_commands()
+            if c.startswith(("sudo mkdir -p core/", "sudo cp \"$ARM/"))]
+    assert ours == theirs
+    # the venv: the runtime's script, which the README names as doing the same
+    assert "sudo bash scripts/manage_plugin_venvs.sh create arm_io" in shell_commands()
+    assert "`bash scripts/manage_plugin_venvs.sh create arm_io` does the same" in readme
