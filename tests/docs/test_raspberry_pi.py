@@ -1,16 +1,20 @@
 """docs/raspberry-pi.md, checked where it can be checked without a Pi: its register numbers and
-command codes against the map derived from Controller.st, its OpenPLC facts against the OpenPLC
-v3 source (a checkout named by the environment variable OPENPLC_SRC; skipped, saying so,
-without it), its install and export commands as a user outside a checkout runs them, and its
-steps 7 and 8 end to end: the controller in the soft PLC, the PSM script driving the PCA9685
-model through a fake I2C bus and reading/writing the PLC's variables as OpenPLC's psm module
-does, and the page's own Python snippet run against it.
+command codes against the map derived from Controller.st, the Modbus server counts it names
+against the exported v4 project, its plugin settings against plc_project/v4_plugin, the
+plugins.conf edit it gives run with sed on a line as the v4 runtime writes it, its OpenPLC v3
+facts against the OpenPLC v3 source (a checkout named by the environment variable
+OPENPLC_SRC; skipped, saying so, without it), its install and export commands as a user
+outside a checkout runs them, and its steps 7 and 8 end to end: the controller in the soft
+PLC, the chip code the v4 plugin and the v3 PSM share driving the PCA9685 model through a fake
+I2C bus and reading/writing the PLC's variables, and the page's own Python snippet run against
+it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import re
 import shlex
@@ -204,6 +208,95 @@ def test_doc_export_command_runs_outside_a_checkout(tmp_path: Path) -> None:
     assert written.is_file(), sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
     committed = REPO / "plc_project" / "openplc" / "arm_controller.st"
     assert written.read_bytes() == committed.read_bytes()
+    # and the v4 project folder the page names, file for file the committed one
+    folder = re.search(r"v4 project folder\s+`([\w./-]+)/`", doc_text())
+    assert folder, "the page does not name the v4 project folder the export writes"
+    v4 = tmp_path / folder.group(1)
+    ours = REPO / "plc_project" / "openplc-v4" / "arm_controller"
+    got = sorted(p.relative_to(v4) for p in v4.rglob("*") if p.is_file())
+    assert got == sorted(p.relative_to(ours) for p in ours.rglob("*") if p.is_file())
+    for rel in got:
+        assert (v4 / rel).read_bytes() == (ours / rel).read_bytes(), rel
+
+
+# ------------------------------------------------------------------ the v4 runtime's settings
+
+V4_PROJECT = REPO / "plc_project" / "openplc-v4" / "arm_controller" / "project.json"
+PLUGIN_DIR = REPO / "plc_project" / "v4_plugin"
+BUFFER_ROWS = {"Holding Registers %QW": [("holdingRegisters", "qwCount")],
+               "Holding Registers %MW": [("holdingRegisters", "mwCount")],
+               "Holding Registers %MD, %ML": [("holdingRegisters", "mdCount"),
+                                              ("holdingRegisters", "mlCount")],
+               "Coils %QX, %MX": [("coils", "qxBits"), ("coils", "mxBits")],
+               "Discrete Inputs %IX": [("discreteInputs", "ixBits")],
+               "Input Registers %IW": [("inputRegisters", "iwCount")]}
+
+
+def test_doc_modbus_counts_are_the_exported_projects() -> None:
+    """Step 4's Buffer Mapping table is what the exported project carries (which
+    tests/export/test_openplc_v4.py checks against the register map and the editor's code)."""
+    project = json.loads(V4_PROJECT.read_text("utf-8"))
+    (server,) = project["data"]["servers"]
+    config = server["modbusSlaveConfig"]
+    assert (config["enabled"], config["port"]) == (True, 502)
+    assert f"`{server['name']}`" in doc_text()
+    rows = table_rows("| segment | count | why |")
+    assert sorted(r[0] for r in rows) == sorted(BUFFER_ROWS)
+    for segment, counts, _ in rows:
+        want = [config["bufferMapping"][g][k] for g, k in BUFFER_ROWS[segment]]
+        assert [int(c) for c in counts.split(",")] == want, segment
+
+
+def test_doc_plugin_settings_are_the_plugins() -> None:
+    settings = json.loads((PLUGIN_DIR / "arm_io.json").read_text("utf-8"))
+    assert (settings["i2c_bus"], settings["pca9685_address"]) == (1, "0x40")
+    assert settings["prescale_from"] == "%MD14"
+    assert (settings["imu_enabled"], settings["imu_period_s"]) == (True, 0.02)
+    text = doc_text()
+    for name in ("i2c_bus", "pca9685_address", "imu_enabled", "imu_period_s"):
+        assert f"`{name}`" in text, name
+    assert "`PwmPrescale` (`%MD14`, 121 for 50 Hz" in " ".join(text.split())
+    assert "smbus2" in (PLUGIN_DIR / "requirements.txt").read_text()
+    assert "requirements.txt` (smbus2)" in " ".join(text.split())
+
+
+def plugins_conf_line() -> str:
+    lines = [c for c in shell_commands() if c.startswith("echo 'arm_io,")]
+    assert len(lines) == 1, lines
+    return shlex.split(lines[0])[1]
+
+
+def test_doc_plugins_conf_line_is_the_plugins_readme() -> None:
+    readme = (PLUGIN_DIR / "README.md").read_text("utf-8")
+    line = plugins_conf_line()
+    assert line in readme
+    name, path, enabled, kind, config, venv = line.split(",")
+    assert (name, enabled, kind, venv) == ("arm_io", "1", "0", "./venvs/arm_io")
+    folder = "./core/src/drivers/plugins/python/arm_io/"
+    assert (path, config) == (folder + "arm_io_plugin.py", folder + "arm_io.json")
+
+
+def test_doc_sed_re_enables_the_plugin_after_an_upload(tmp_path: Path) -> None:
+    """After an upload the runtime writes every plugins.conf line as
+    ``name,path,enabled,type,config_path[,venv_path]`` (webserver/plugin_config_model.py,
+    PluginConfig.to_line) with enabled 0 for the plugins the upload carried no configuration
+    for; the page's sed sets arm_io's back to 1 and touches nothing else."""
+    line = plugins_conf_line()
+    fields = line.split(",")
+    disabled = ",".join([*fields[:2], "0", *fields[3:]])
+    others = ["# name,path,enabled,type,config_path,venv_path",
+              "modbus_slave,./core/src/drivers/plugins/python/modbus_slave/simple_modbus.py,1,0,"
+              "./core/src/drivers/plugins/python/modbus_slave/modbus_slave.json,./venvs/modbus_slave",
+              "arm_io_old,./x/arm_io.py,0,0,./x/arm_io.json,./venvs/x",
+              "s7comm,./build/plugins/libs7comm.so,0,1,"]
+    conf = tmp_path / "plugins.conf"
+    conf.write_text("\n".join([others[0], others[1], disabled, others[2], others[3]]) + "\n")
+    seds = [c for c in shell_commands() if c.startswith("sudo sed -i ")]
+    assert len(seds) == 1, seds
+    args = shlex.split(seds[0])[1:]  # without sudo
+    assert args[-1] == "plugins.conf"
+    subprocess.run([*args[:-1], str(conf)], check=True, timeout=60)
+    assert conf.read_text().splitlines() == [others[0], others[1], line, others[2], others[3]]
 
 
 # ---------------------------------------------------------------- steps 7 and 8 in the bench
@@ -356,3 +449,19 @@ def test_doc_asks_for_a_64_bit_os() -> None:
     before the first step."""
     text = doc_text()
     assert "Raspberry Pi OS 64-bit" in text[: text.index("## 1.")]
+
+
+def test_doc_plugin_install_is_the_one_tests_plugin_v4_runs() -> None:
+    """Step 3's mkdir and copy are the plugin README's, which tests/plugin_v4 runs in a
+    runtime tree (here with sudo, the runtime's checkout being root's)."""
+    readme = (PLUGIN_DIR / "README.md").read_text("utf-8")
+    blocks = [b for b in re.findall(r"```sh\n(.*?)```", readme, re.S)
+              if re.search(r"^cp ", b, re.M)]
+    assert len(blocks) == 1, blocks
+    theirs = [ln.strip() for ln in blocks[0].splitlines() if ln.strip()]
+    ours = [c.removeprefix("sudo ") for c in shell_commands()
+            if c.startswith(("sudo mkdir -p core/", "sudo cp \"$ARM/"))]
+    assert ours == theirs
+    # the venv: the runtime's script, which the README names as doing the same
+    assert "sudo bash scripts/manage_plugin_venvs.sh create arm_io" in shell_commands()
+    assert "`bash scripts/manage_plugin_venvs.sh create arm_io` does the same" in readme

@@ -54,6 +54,12 @@ NOT_OURS = {
     "journal_buffer.h", "mutex_manager.py", "modbus_slave.json", "test_modbus_slave.py",
     "test_inputs.py", "register_message.py", "bit_message.py", "requesthandler.py",
     "context.py", "framer/socket.py", "transport.py",
+    # OpenPLC v4's runtime files and the paths it installs into, named by docs/raspberry-pi.md
+    "install.sh", "compile.sh", "scripts/compile.sh", "manage_plugin_venvs.sh",
+    "scripts/manage_plugin_venvs.sh", "plcapp_management.py", "webserver/plcapp_management.py",
+    "webserver/plugin_config_model.py", "conf/modbus_slave.json",
+    "./core/src/drivers/plugins/python/arm_io/arm_io.json",
+    "./core/src/drivers/plugins/python/arm_io/arm_io_plugin.py",
     # RuSTy's own files, in its checkout (docs/exports.md: building it)
     "Cargo.toml", "include/*.st", "libs/stdlib/iec61131-st/*.st", "scripts/build.sh",
     # a script's argument placeholder

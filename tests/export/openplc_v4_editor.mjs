@@ -3,13 +3,16 @@
 //
 //   node openplc_v4_editor.mjs EDITOR_CHECKOUT load PROJECT_DIR   -> JSON on stdout
 //   node openplc_v4_editor.mjs EDITOR_CHECKOUT xml PROJECT_DIR    -> PLCopen XML on stdout
+//   node openplc_v4_editor.mjs EDITOR_CHECKOUT modbus PROJECT_DIR -> conf/modbus_slave.json
 //
 // `load`: the project.json checked against the editor's zod schema (PLCProjectSchema), then
 // the folder opened by the editor's loader (readProjectFiles, on a copy: it writes default
 // device files into the folder it opens). `xml`: the loaded project turned into the PLCopen
 // XML that the editor's build hands to xml2st (its XmlGenerator for the "old-editor"
 // dialect, called part by part because 4.1's XmlGenerator also insists on a program named
-// "main", a check later editors dropped).
+// "main", a check later editors dropped). `modbus`: what the editor's build for OpenPLC Runtime
+// v4 writes into the upload as conf/modbus_slave.json from the loaded project's servers
+// (generateModbusSlaveConfig; "null" when the project has no Modbus TCP server).
 //
 // esbuild bundles just those modules, found from the checkout upward (install it, zod and
 // xmlbuilder2 beside the checkout: docs/exports.md). Every other package they pull in
@@ -39,8 +42,9 @@ import {
   getBaseOldEditorXmlStructure, oldEditorInstanceToXml, oldEditorParseDataTypesToXML,
   oldEditorParsePousToXML,
 } from '@root/utils/PLC/xml-generator/old-editor'
+import { generateModbusSlaveConfig } from '@root/utils/modbus/generate-modbus-slave-config'
 import { create } from 'xmlbuilder2'
-export { PLCProjectSchema, readProjectFiles }
+export { PLCProjectSchema, readProjectFiles, generateModbusSlaveConfig }
 export function projectXml(data) {
   let xml = getBaseOldEditorXmlStructure()
   xml = oldEditorParsePousToXML(xml, data.pous)
@@ -104,6 +108,10 @@ try {
     if (!loaded.success) throw new Error(`the editor did not open ${projectDir}`)
     const { project, pous } = loaded.data
     process.stdout.write(editor.projectXml({ ...project.data, pous }))
+  } else if (command === 'modbus') {
+    if (!loaded.success) throw new Error(`the editor did not open ${projectDir}`)
+    // the build reads the servers of the project the editor holds: project.json's data
+    process.stdout.write(String(editor.generateModbusSlaveConfig(loaded.data.project.data.servers)))
   } else {
     throw new Error(`unknown command ${command}`)
   }

@@ -31,6 +31,7 @@ from armbench.compiler import check_files
 from armbench.export import generate
 from armbench.export.openplc_v4 import CLASSES, POU_FOLDERS, _init_text, project_dir
 from armbench.export.sttext import expr_text
+from armbench.registermap import controller_map
 from strucpp_tool import SKIP_REASON, find_strucpp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -160,6 +161,77 @@ def test_v4_program_file_is_laid_out_as_the_editor_saves_it(tmp_path: Path) -> N
         "globalVariables": []}
 
 
+# the holding block of v4's Modbus plugin lays %QW, %MW, %MD (2 registers each) and %ML
+# (4 each) head to tail (simple_modbus.py of Autonomy-Logic/openplc-runtime)
+HOLDING_SEGMENTS = (("%QW", "qwCount", 1), ("%MW", "mwCount", 1), ("%MD", "mdCount", 2),
+                    ("%ML", "mlCount", 4))
+V3_MAP = {"holdingRegisters": {"qwCount": 1024, "mwCount": 1024, "mdCount": 1024,
+                               "mlCount": 1024},
+          "coils": {"qxBits": 8192, "mxBits": 0}, "discreteInputs": {"ixBits": 8192},
+          "inputRegisters": {"iwCount": 1024}}
+
+
+def modbus_server_record(project: dict[str, Any]) -> dict[str, Any]:
+    servers = project["data"]["servers"]
+    assert len(servers) == 1 and servers[0]["protocol"] == "modbus-tcp", servers
+    record: dict[str, Any] = servers[0]
+    return record
+
+
+def v4_holding_address(location: str, counts: dict[str, int]) -> tuple[int, bool]:
+    """Where v4's plugin serves a %QW/%MW/%MD/%ML variable with these segment counts, and
+    whether its segment reaches it."""
+    start = 0
+    for prefix, key, width in HOLDING_SEGMENTS:
+        if location.startswith(prefix):
+            index = int(location[3:])
+            return start + index * width, index < counts[key]
+        start += counts[key] * width
+    raise ValueError(location)
+
+
+def test_the_v4_project_carries_a_modbus_server_that_keeps_the_register_map() -> None:
+    """The controller's project holds an enabled Modbus TCP server on port 502 whose segment
+    counts put every holding register of the register map (derived from Controller.st) where
+    v3 serves it, and cover its coils, discrete inputs and input registers."""
+    project = json.loads((V4_PROJECT / "project.json").read_text("utf-8"))
+    server = modbus_server_record(project)["modbusSlaveConfig"]
+    assert (server["enabled"], server["networkInterface"], server["port"]) == \
+        (True, "0.0.0.0", 502)
+    mapping = server["bufferMapping"]
+    regs = list(controller_map().values())
+    holding = [r for r in regs if r.table == "holding"]
+    assert {r.location[:3] for r in holding} >= {"%QW", "%MW", "%MD"}
+    for reg in holding:
+        assert v4_holding_address(reg.location, mapping["holdingRegisters"]) == \
+            (reg.address, True), reg
+    tops = {"coil": ("coils", "qxBits"), "discrete": ("discreteInputs", "ixBits"),
+            "input": ("inputRegisters", "iwCount")}
+    for reg in regs:
+        if reg.table in tops:
+            group, key = tops[reg.table]
+            assert reg.address + reg.count <= mapping[group][key], reg
+
+
+def test_the_modbus_server_grows_to_a_programs_addresses(tmp_path: Path) -> None:
+    """Counts come from the program's addresses: a segment v3's map leaves empty (%MX, whose
+    coils the plugin puts after %QX) grows to the program's, and a program within v3's map
+    gets v3's map."""
+    src = tmp_path / "Blink.st"
+    src.write_text(BLINK.replace("Phase AT %MD0 : REAL := 0.5;",
+                                 "Phase AT %MD0 : REAL := 0.5;\n    Flag AT %MX3.1 : BOOL;"))
+    assert main(["export", str(src), "--out", str(tmp_path / "out")]) == 0
+    project = json.loads((tmp_path / "out" / project_dir("Blink") / "project.json")
+                         .read_text("utf-8"))
+    mapping = modbus_server_record(project)["modbusSlaveConfig"]["bufferMapping"]
+    assert mapping == {**V3_MAP, "coils": {"qxBits": 8192, "mxBits": 32}}
+    (tmp_path / "Plain.st").write_text(BLINK)
+    assert main(["export", str(tmp_path / "Plain.st"), "--out", str(tmp_path / "plain")]) == 0
+    plain = json.loads((tmp_path / "plain" / project_dir("Blink") / "project.json")
+                       .read_text("utf-8"))
+    assert modbus_server_record(plain)["modbusSlaveConfig"]["bufferMapping"] == V3_MAP
+
+
 # ---------------------------------------------------------------- the editor's own code
 def editor_checkout() -> Path:
     named = os.environ.get("OPENPLC_EDITOR", "")
@@ -258,6 +330,29 @@ def test_the_editor_opens_a_user_programs_project(tmp_path: Path) -> None:
     assert (lamp["name"], lamp["location"], lamp["documentation"]) == ("Lamp", "%QX0.0",
                                                                        "the lamp")
     assert "variablesText" not in pous["Blink"] and "variablesText" not in pous["DegToRad"]
+
+
+def test_the_editors_build_writes_the_modbus_segment_counts(tmp_path: Path) -> None:
+    """conf/modbus_slave.json, as the editor's build for OpenPLC Runtime v4 writes it from the
+    opened project, asks v4's Modbus plugin for the project's counts; a project without the
+    server gets none, so the runtime would disable its Modbus plugin at the upload."""
+    project = json.loads((V4_PROJECT / "project.json").read_text("utf-8"))
+    mapping = modbus_server_record(project)["modbusSlaveConfig"]["bufferMapping"]
+    conf = json.loads(run_editor("modbus", V4_PROJECT))
+    assert conf["network_configuration"] == {"host": "0.0.0.0", "port": 502}
+    h = mapping["holdingRegisters"]
+    assert conf["buffer_mapping"] == {
+        "holding_registers": {"qw_count": h["qwCount"], "mw_count": h["mwCount"],
+                              "md_count": h["mdCount"], "ml_count": h["mlCount"]},
+        "coils": {"qx_bits": mapping["coils"]["qxBits"], "mx_bits": mapping["coils"]["mxBits"]},
+        "discrete_inputs": {"ix_bits": mapping["discreteInputs"]["ixBits"]},
+        "input_registers": {"iw_count": mapping["inputRegisters"]["iwCount"]}}
+    assert (h["qwCount"], h["mwCount"]) == (1024, 1024)
+    bare = tmp_path / "bare"
+    shutil.copytree(V4_PROJECT, bare)
+    del project["data"]["servers"]
+    (bare / "project.json").write_text(json.dumps(project, indent=2), "utf-8")
+    assert run_editor("modbus", bare) == "null"
 
 
 # ---------------------------------------------------------------- the editor's build

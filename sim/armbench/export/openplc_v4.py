@@ -19,6 +19,12 @@ enumerations with explicit values) is refused with a message. An inline array th
 cannot read (more than one dimension: editor 4.1 reads only one inline, later versions read
 both; a negative bound) is declared through a generated named type. The output is
 deterministic.
+
+``project.json`` also carries one Modbus TCP server (the editor's ``data.servers``, what its
+Modbus server screen edits): without one the editor's upload carries no
+``conf/modbus_slave.json`` and the runtime disables its Modbus plugin. Its buffer mapping is
+v3's map (the editor's and the plugin's defaults), each segment grown to the program's located
+variables (:func:`modbus_server`).
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from typing import Any
 
 from ..compiler import ast as A
 from ..compiler.symbols import CheckedProgram
+from ..softplc.openplc_v4 import DEFAULT_COUNTS, SEGMENT_TABLES, image_floor
 from .sources import Source
 from .sttext import SourceText, expr_text
 
@@ -51,6 +58,19 @@ CLASSES = {A.VAR_GLOBAL: "global", A.VAR_EXTERNAL: "external", A.VAR_INPUT: "inp
            A.VAR_OUTPUT: "output", A.VAR_IN_OUT: "inOut", A.VAR: "local", A.VAR_TEMP: "temp"}
 CLASS_ORDER = ("global", "external", "input", "output", "inOut", "local", "temp")
 BLOCK_OF_CLASS = {c: k for k, c in CLASSES.items()}
+
+
+MODBUS_SERVER_NAME = "ModbusServer"
+MODBUS_PORT = 502
+# the editor's bufferMapping record (open-plc.ts ModbusSlaveBufferMappingSchema) -> the
+# plugin's count it becomes in conf/modbus_slave.json (generate-modbus-slave-config.ts)
+BUFFER_MAPPING_FIELDS = (("holdingRegisters", "qwCount", "qw_count"),
+                         ("holdingRegisters", "mwCount", "mw_count"),
+                         ("holdingRegisters", "mdCount", "md_count"),
+                         ("holdingRegisters", "mlCount", "ml_count"),
+                         ("coils", "qxBits", "qx_bits"), ("coils", "mxBits", "mx_bits"),
+                         ("discreteInputs", "ixBits", "ix_bits"),
+                         ("inputRegisters", "iwCount", "iw_count"))
 
 
 class V4ExportError(ValueError):
@@ -318,8 +338,49 @@ def build_project(prog: CheckedProgram, sources: Sequence[Source], *,
             files[path] = b.pou_file(pou).encode("utf-8")
     configuration = b.configuration()  # before the data types: it may add hoisted ones
     data_types = [b.data_type(td) for src in sources for td in src.unit.types] + b.hoisted
+    taken = {n.upper() for n in (*b.taken, *(t["name"] for t in data_types))}
+    if MODBUS_SERVER_NAME.upper() in taken:
+        raise V4ExportError(f"the program declares {MODBUS_SERVER_NAME}, the name of the "
+                            "Modbus server the v4 project carries: rename it")
     project = {"meta": {"name": name, "type": "plc-project"},
-               "data": {"dataTypes": data_types, "pous": [], "configuration": configuration}}
+               "data": {"dataTypes": data_types, "pous": [], "configuration": configuration,
+                        "servers": [modbus_server(located_addresses(sources))]}}
     # JSON.stringify(project, null, 2), as the editor writes it, plus a final newline
     text = json.dumps(project, indent=2, ensure_ascii=False) + "\n"
     return {root / "project.json": text.encode("utf-8"), **dict(sorted(files.items()))}
+
+
+def located_addresses(sources: Sequence[Source]) -> list[str]:
+    """Every direct address the program's declarations give (POUs and configuration)."""
+    blocks: list[A.VarBlock] = []
+    for src in sources:
+        blocks += [b for pou in src.unit.pous for b in pou.blocks]
+        blocks += src.unit.stray_globals
+        for cfg in src.unit.configs:
+            blocks += [*cfg.globals, *(b for r in cfg.resources for b in r.globals)]
+    return [d.address for b in blocks for d in b.decls if d.address]
+
+
+def buffer_counts(addresses: Sequence[str]) -> dict[str, int]:
+    """The Modbus plugin's segment counts for a program: v3's map (the defaults of the
+    editor's screen and of the plugin), each segment grown to reach the program's highest
+    address in it. The holding segments lie head to tail, so keeping %QW and %MW at 1024 (or
+    more) is what keeps %MW, %MD and %ML at v3's registers."""
+    floor = image_floor(addresses)
+    counts = dict(DEFAULT_COUNTS)
+    for key in counts:
+        need = floor.get(SEGMENT_TABLES[key], 0) * (8 if key.endswith("_bits") else 1)
+        counts[key] = max(counts[key], need)
+    return counts
+
+
+def modbus_server(addresses: Sequence[str]) -> dict[str, Any]:
+    """The editor's record of an enabled Modbus TCP server on every interface, port 502,
+    with :func:`buffer_counts` of the program as its buffer mapping."""
+    counts = buffer_counts(addresses)
+    mapping: dict[str, dict[str, int]] = {}
+    for group, field_name, key in BUFFER_MAPPING_FIELDS:
+        mapping.setdefault(group, {})[field_name] = counts[key]
+    return {"name": MODBUS_SERVER_NAME, "protocol": "modbus-tcp",
+            "modbusSlaveConfig": {"enabled": True, "networkInterface": "0.0.0.0",
+                                  "port": MODBUS_PORT, "bufferMapping": mapping}}
