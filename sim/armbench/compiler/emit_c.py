@@ -20,10 +20,13 @@ from dataclasses import dataclass, field
 
 from . import ast as A
 from .stdlib import STD_FB_BODIES, STD_FBS
+from .strings import c_initializer, string_literal
 from .symbols import CallTarget, CheckedProgram, PouSym, VarSym
 from .types import (
     BOOL,
+    DINT,
     ELEMENTARY,
+    STRING,
     ArrayType,
     ElemType,
     EnumType,
@@ -59,6 +62,9 @@ UNROLL_TRIPS = 8
 UNROLL_NODES = 1200
 # what a FUNCTION's frame struct holds (its other variables are locals of its C function)
 FN_FRAME_KINDS = (A.VAR_INPUT, A.VAR_IN_OUT, A.VAR_OUTPUT)
+
+
+STRING_CDEF = "typedef struct { int8_t len; uint8_t body[126]; } plc_string_t;\n"
 
 
 @dataclass
@@ -204,7 +210,9 @@ class Emitter:
         storage = "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
         shared = decls + storage + "".join(self.forward) + "".join(self.std_code)
         code = "#include \"iec_runtime.h\"\n" + shared + "".join(self.pieces) + main
-        return CUnit(decls + storage + "".join(self.ffi_only), code, shared=shared,
+        # the runtime header defines plc_string_t for the C; cffi sees only the declarations
+        ffi_decls = STRING_CDEF + decls if "plc_string_t" in decls else decls
+        return CUnit(ffi_decls + storage + "".join(self.ffi_only), code, shared=shared,
                      pieces=self.pieces, main=main)
 
     def pou_struct(self, sym: PouSym) -> None:
@@ -328,8 +336,10 @@ class Emitter:
             if isinstance(t, EnumType) and t.values:
                 first = next(iter(t.values.values()))[1]
                 return str(first if t.default is None else t.default)
-            return "0"
+            return "{0}" if t is STRING else "0"
         assert isinstance(init, A.Expr)
+        if isinstance(init, A.Literal) and init.kind == "string":
+            return self.string_init(init)
         # file scope: fewer than SPILL_EVERY operators here (is_shared_constant), no spill
         return self.expr(init, want=t)
 
@@ -1163,6 +1173,8 @@ class Emitter:
 
     def literal(self, e: A.Literal, t: Type | None, negate: bool = False) -> str:
         v = e.value
+        if e.kind == "string":
+            return f"((plc_string_t){self.string_init(e)})"
         if e.kind == "bool":
             return "1" if v else "0"
         if e.kind == "enum":
@@ -1184,6 +1196,10 @@ class Emitter:
                 return f"(({t.ctype}){n}{'ULL' if t.kind in ('uint', 'bits') and n >= 0 else 'LL'})"
             return f"(({t.ctype}){n})"
         return f"((int64_t){n}LL)"
+
+    def string_init(self, e: A.Literal) -> str:
+        return c_initializer(string_literal(e.text[e.text.index("'"):] if "'" in e.text
+                                            else e.text))
 
     def binary(self, e: A.Binary, t: Type | None) -> str:
         """`a + b + c + ...` in a loop: its left spine is as deep as the chain is long. Inside
@@ -1220,6 +1236,8 @@ class Emitter:
         op = e.op
         cmp = {"=": "==", "<>": "!=", "<": "<", "<=": "<=", ">": ">", ">=": ">="}
         if op in cmp:
+            if self.p.expr_types.get(e.left) is STRING:
+                return f"(plc__str_cmp({a}, {b}) {cmp[op]} 0)"
             return f"({a} {cmp[op]} {b})"
         assert isinstance(t, ElemType), f"binary {op} on {t}"
         ct = t.ctype
@@ -1246,6 +1264,27 @@ class Emitter:
         return f"(({ct})({a} {op} {b}))"
 
     def conversion(self, a: str, src: ElemType, dst: ElemType) -> str:
+        if dst is STRING:
+            # MatIEC's *_TO_STRING: snprintf formats, REAL through double with %.10g
+            if src.kind == "bool":
+                return f"plc__str_fmt_bool({a})"
+            if src.kind == "bits":
+                return f"plc__str_fmt_bits((uint64_t){a})"
+            if src.kind == "sint":
+                return f"plc__str_fmt_s((int64_t){a})"
+            if src.kind == "uint":
+                return f"plc__str_fmt_u((uint64_t){a})"
+            if src.is_real:
+                return f"plc__str_fmt_real((double){a})"
+            return f"plc__str_fmt_time({a})"
+        if src is STRING:
+            if dst.kind == "bool":
+                return f"((uint8_t)plc__str_to_bool({a}))"
+            if dst.is_real:
+                return f"(({dst.ctype})plc__str_to_real({a}))"
+            if dst.kind == "time":
+                return f"plc__str_to_time({a})"
+            return f"(({dst.ctype})plc__str_to_int({a}))"
         if dst.kind == "bool":
             return f"({a} != 0)"
         # TIME converts in seconds, as MatIEC does (verified with its runtime)
@@ -1287,6 +1326,8 @@ class Emitter:
             x = self.expr(args[0], want=t)
             y = self.expr(args[1], want=bt)
             return f"pow{'f' if t.bits == 32 else ''}({x}, ({t.ctype}){y})"
+        if f.kind.startswith("str_"):
+            return self.string_call(c, name, args, t)
         assert isinstance(t, ElemType)
         ct = t.ctype
         if name == "MOVE":
@@ -1362,6 +1403,31 @@ class Emitter:
         raise AssertionError(f"std function {name}")
 
 
+    def string_call(self, c: A.Call, name: str, args: list[A.Expr], t: Type | None) -> str:
+        """MatIEC's string functions (runtime plc__str_*); every argument evaluated once, in
+        the order written."""
+        vals = []
+        for a in args:
+            at = self.p.expr_types[a]
+            vals.append(self.expr(a, want=at if not isinstance(at, LiteralType) else DINT))
+        pos = self.pos(c)
+        if name == "LEN":
+            ct = t.ctype if isinstance(t, ElemType) else "int64_t"
+            return f"(({ct})({vals[0]}).len)"
+        if name == "FIND":
+            ct = t.ctype if isinstance(t, ElemType) else "int64_t"
+            return f"(({ct})plc__str_find({vals[0]}, {vals[1]}))"
+        if name == "CONCAT":
+            r = self.loc.tmp()
+            cats = " ".join(f"plc__str_cat(&{r}, {v});" for v in vals)
+            return f"({{ plc_string_t {r} = plc__str_empty(); {cats} {r}; }})"
+        fn = {"LEFT": "left", "RIGHT": "right", "MID": "mid", "INSERT": "insert",
+              "DELETE": "delete", "REPLACE": "replace"}[name]
+        ints = [f"(int64_t)({v})" if self.p.expr_types[a] is not STRING else v
+                for a, v in zip(args, vals, strict=True)]
+        return f"plc__str_{fn}({', '.join(ints)}, {pos})"
+
+
 def nodes(obj: object) -> list[A.Node]:
     """Every AST node in obj (a node or a list of them), with a stack: A.walk, faster (no
     dataclass field lists) and the nodes only."""
@@ -1425,8 +1491,10 @@ def statement_lists(body: list[A.Stmt]) -> Iterator[list[A.Stmt]]:
 
 
 def is_scalar(t: Type) -> bool:
-    """Held in one C scalar (an elementary or enumerated type), not a STRUCT or ARRAY."""
-    return isinstance(t, ElemType | EnumType | LiteralType)
+    """Held in one C scalar (an elementary or enumerated type), not a STRUCT, ARRAY or
+    STRING (a C struct, copied and passed as the STRUCTs are)."""
+    return isinstance(t, EnumType | LiteralType) or (isinstance(t, ElemType) and
+                                                     t.kind != "string")
 
 
 def effective_init(t: Type, init: A.Init | None) -> A.Init | None:

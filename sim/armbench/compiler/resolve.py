@@ -34,6 +34,7 @@ from .types import (
     INT_LIT,
     LINT,
     REAL_LIT,
+    STRING,
     TIME,
     ArrayType,
     ElemType,
@@ -391,6 +392,8 @@ class Checker(Declarations):
                 return ERROR_T
             self.names[e] = NameRef("enum", enum_value=v[1])
             return et
+        if e.kind == "string":
+            return STRING
         if e.type_prefix is not None:
             t = ELEMENTARY.get(e.type_prefix)
             if t is None:
