@@ -474,8 +474,9 @@ class Lowerer:
             if n.type == "time_literal":
                 return A.Literal(p, "time", parse_time_literal(raw), text, prefix)
             if n.type == "string_literal":
-                if prefix is not None and prefix != "STRING":
-                    raise _Unsupported(n, f"{prefix}# literal: OpenPLC v3 builds STRING only")
+                if prefix is not None:
+                    raise StringLiteralError(f"{prefix}#'...': MatIEC's grammar has no typed "
+                                             "string literal; write the '...' alone")
                 return A.Literal(p, "string", string_literal(raw).data.decode("latin-1"),
                                  text, prefix)
         except StringLiteralError as exc:
