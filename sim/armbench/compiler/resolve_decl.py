@@ -210,6 +210,11 @@ class Declarations:
 
     def check_location(self, decl: A.VarDecl, t: Type) -> None:
         addr = decl.address or ""
+        if isinstance(t, ElemType) and t.kind == "string":
+            self.d.error(decl.pos, "E0600", f"STRING '{decl.name}' at {addr}: no location "
+                         "holds a STRING (MatIEC: bit sizes incompatible; OpenPLC's Modbus "
+                         "maps no STRING); keep it unlocated")
+            return
         if isinstance(t, ArrayType) or not isinstance(t, ElemType):
             self.d.error(decl.pos, "E0600", f"'{decl.name}' at {addr}: only elementary "
                          "variables can be located")
