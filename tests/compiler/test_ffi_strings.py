@@ -3,8 +3,6 @@ latin-1), checked against the 126-byte body MatIEC gives every STRING."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from armbench.compiler import compile_files
