@@ -156,6 +156,10 @@ class StdCallTyper:
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs integers, not {t}")
             if k == "bits_n" and not (isinstance(t, ElemType) and t.is_bits):
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs BOOL or bits, not {t}")
+            elif f.name == "XOR" and isinstance(t, ElemType) and t.kind == "bits":
+                self.k.d.error(c.pos, "E0105", f"unsupported construct: XOR(...) of {t} in "
+                               "call form: OpenPLC's C build fails (MatIEC calls "
+                               f"XOR__{t}__{t}, which its library lacks); write a XOR b")
             if not isinstance(t, ElemType):
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs elementary arguments, not {t}")
                 return ERROR_T
