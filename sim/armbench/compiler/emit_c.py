@@ -1164,6 +1164,9 @@ class Emitter:
             tgt = self.p.calls[e]
             if tgt.kind == "function":
                 return self.fn_call(e)
+            if tgt.kind == "alias":
+                assert tgt.alias is not None
+                return self.expr(tgt.alias, want=want if t is None else t)
             if tgt.kind == "conv":
                 assert tgt.conv is not None
                 return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
@@ -1241,6 +1244,10 @@ class Emitter:
             return f"({a} {cmp[op]} {b})"
         assert isinstance(t, ElemType), f"binary {op} on {t}"
         ct = t.ctype
+        if op == "DIV":  # MatIEC's DIV function: a zero divisor gives 0 (the operator traps)
+            x, y = self.loc.tmp(), self.loc.tmp()
+            q = self.binary_node(A.Binary(e.pos, "/", e.left, e.right), t, x, y)
+            return f"({{ {ct} {x} = {a}; {ct} {y} = {b}; {y} == 0 ? ({ct})0 : {q}; }})"
         if op in ("AND", "OR", "XOR"):
             c = {"AND": "&", "OR": "|", "XOR": "^"}[op]
             return f"({a} {c} {b})" if t.kind == "bool" else f"(({ct})({a} {c} {b}))"

@@ -18,7 +18,7 @@ from .diagnostics import Diagnostics
 from .resolve_decl import Declarations
 from .resolve_std import StdCallTyper
 from .source import SourcePos
-from .stdlib import CONVERSIONS, STD_FBS, STD_FUNCS
+from .stdlib import CALL_FORM_OPERATORS, CONVERSIONS, STD_FBS, STD_FUNCS
 from .symbols import (
     CallTarget,
     CheckedProgram,
@@ -494,7 +494,7 @@ class Checker(Declarations):
             return ERROR_T
         return t
 
-    _ARITH = {"+", "-", "*", "/", "MOD", "**"}
+    _ARITH = {"+", "-", "*", "/", "DIV", "MOD", "**"}
     _CMP = {"=", "<>", "<", "<=", ">", ">="}
     _LOGIC = {"AND", "OR", "XOR"}
 
@@ -516,7 +516,7 @@ class Checker(Declarations):
         return lt
 
     def binary_node(self, e: A.Binary, lt: Type, rt: Type) -> Type:
-        op = e.op
+        op = "/" if e.op == "DIV" else e.op  # DIV: the call form's division (operator_call)
         if lt is ERROR_T or rt is ERROR_T:
             return ERROR_T
         if op == "**":
@@ -676,6 +676,8 @@ class Checker(Declarations):
             return dst
         if key in STD_FUNCS:
             return self.std.check(c, STD_FUNCS[key], expected)
+        if key in CALL_FORM_OPERATORS and key not in self.pous:
+            return self.operator_call(c, key, expected)
         sym = self.pous.get(key)
         if sym is None:
             if key == "ATAN2":
@@ -695,6 +697,54 @@ class Checker(Declarations):
             self.call_sites.setdefault((self.cur.key, key), c.pos)
             self.check_struct_return_call(c, sym)
         return self.bind(c, sym, "function", sym.return_type or ERROR_T)
+
+    def operator_call(self, c: A.Call, key: str, expected: Type | None) -> Type:
+        """ADD(a, b, c), GT(IN1 := a, IN2 := b), MULTIME(t, 3), ...: typed and computed as the
+        operator expression (a + b + c; a > b AND b > c for the extensible comparisons), as
+        MatIEC's standard library declares them. DIV is `/` except that a zero divisor gives
+        0, as MatIEC's DIV function does (the operator `/` traps)."""
+        op, least, most = CALL_FORM_OPERATORS[key]
+        args: list[A.Expr] = []
+        if c.args and c.args[0].name is not None:
+            by_index: dict[int, A.Expr] = {}
+            for a in c.args:
+                assert a.name is not None
+                n = a.name.upper()
+                if not (n.startswith("IN") and n[2:].isdigit()) or a.is_output:
+                    self.d.error(a.pos, "E0407", f"{key} has no parameter '{a.name}' (it "
+                                 "takes IN1, IN2" + (", ..." if not most else "") + ")")
+                    return ERROR_T
+                by_index[int(n[2:])] = a.value
+            if sorted(by_index) != list(range(1, len(by_index) + 1)):
+                self.d.error(c.pos, "E0409", f"{key} needs IN1, IN2, ... without gaps")
+                return ERROR_T
+            args = [by_index[i] for i in sorted(by_index)]
+        else:
+            args = [a.value for a in c.args]
+        if len(args) < least or (most and len(args) > most):
+            self.d.error(c.pos, "E0400", f"{key} takes " + (f"{least}" if most == least else
+                         f"at least {least}") + f" arguments, {len(args)} given")
+            return ERROR_T
+        tree: A.Expr
+        if op in self._CMP and len(args) > 2:
+            pairs: list[A.Expr] = [A.Binary(c.pos, op, args[i], args[i + 1])
+                                   for i in range(len(args) - 1)]
+            tree = pairs[0]
+            for p in pairs[1:]:
+                tree = A.Binary(c.pos, "AND", tree, p)
+        else:
+            tree = args[0]
+            for a in args[1:]:
+                tree = A.Binary(c.pos, "DIV" if key == "DIV" else op, tree, a)
+        t = self.expr(tree, expected)
+        if key in ("ADD_TIME", "SUB_TIME", "MULTIME", "DIVTIME") and t is not ERROR_T and \
+                t is not TIME:
+            self.d.error(c.pos, "E0300", f"{key} computes on TIME, not {t}")
+            return ERROR_T
+        self.calls[c] = CallTarget("alias", inputs=tuple((f"IN{i + 1}", a)
+                                                         for i, a in enumerate(args)),
+                                   alias=tree)
+        return t
 
     def check_struct_return_call(self, c: A.Call, sym: PouSym) -> None:
         # iec2c accepts this call, but in a FUNCTION_BLOCK or PROGRAM body it wraps it in a
