@@ -835,7 +835,8 @@ class Emitter:
                     return ""  # the named result is the result itself
             if isinstance(s.value, A.Call) and not is_scalar(tt):
                 call = self.p.calls[s.value]
-                if call.kind == "function" and self.may_target(s.target, call):
+                if call.kind == "function" and call.en is None and call.eno is None and \
+                        self.may_target(s.target, call):
                     return f"{ind}{self.fn_call(s.value, dest=s.target)};\n"
             return f"{ind}{self.assign_c(self.lvalue(s.target), s.value, tt)}\n"
         if isinstance(s, A.CallStmt):
@@ -937,7 +938,15 @@ class Emitter:
                 out += f"{ind}    {inst}.{key} = &{self.lvalue(e)};\n"
             else:
                 out += f"{ind}    {self.assign_c(f'{inst}.{key}', e, v.type)}\n"
-        out += f"{ind}    {cname}_body(&{inst});\n"
+        if tgt.en is None and tgt.eno is None:
+            out += f"{ind}    {cname}_body(&{inst});\n"
+        else:
+            # EN FALSE: the inputs are set and the outputs copied, the body does not run
+            en = self.loc.tmp()
+            en_c = self.expr(tgt.en, want=BOOL) if tgt.en is not None else "1"
+            out += f"{ind}    uint8_t {en} = {en_c};\n{ind}    if ({en}) {cname}_body(&{inst});\n"
+            if tgt.eno is not None:
+                out += f"{ind}    {self.lvalue(tgt.eno)} = {en};\n"
         for key, e in tgt.outputs:
             out += f"{ind}    {self.copy_c(self.lvalue(e), f'{inst}.{key}', sym.vars[key].type)}\n"
         return out + f"{ind}}}\n"
@@ -1161,18 +1170,46 @@ class Emitter:
         if isinstance(e, A.Binary):
             return self.binary(e, t)
         if isinstance(e, A.Call):
-            tgt = self.p.calls[e]
-            if tgt.kind == "function":
-                return self.fn_call(e)
-            if tgt.kind == "alias":
-                assert tgt.alias is not None
-                return self.expr(tgt.alias, want=want if t is None else t)
-            if tgt.kind == "conv":
-                assert tgt.conv is not None
-                return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
-                                       *tgt.conv)
-            return self.std_call(e, t)
+            if self.p.calls[e].en is not None or self.p.calls[e].eno is not None:
+                return self.en_call(e, t, want)
+            return self.call_value(e, t, want)
         raise AssertionError(f"expression {type(e).__name__}")
+
+    def en_call(self, e: A.Call, t: Type | None, want: Type | None) -> str:
+        """A call with EN/ENO, as MatIEC's C runs it: with EN FALSE nothing is computed, the
+        result is 0 (zero bytes), a FUNCTION's outputs are not written, ENO is FALSE."""
+        tgt = self.p.calls[e]
+        rt = t if not isinstance(t, LiteralType) else want if isinstance(want, ElemType) else t
+        assert rt is not None
+        en, r = self.loc.tmp(), self.loc.tmp()
+        en_c = self.expr(tgt.en, want=BOOL) if tgt.en is not None else "1"
+        eno = f" {self.lvalue(tgt.eno)} = {en};" if tgt.eno is not None else ""
+        value = self.call_value(e, t, want)
+        div = tgt.alias if isinstance(tgt.alias, A.Binary) and tgt.alias.op == "DIV" else None
+        if div is not None and isinstance(rt, ElemType):
+            # DIV by zero: 0 and ENO FALSE, as MatIEC's DIV (TEST_EN_COND)
+            x, y = self.loc.tmp(), self.loc.tmp()
+            q = self.binary_node(A.Binary(div.pos, "/", div.left, div.right), rt, x, y)
+            value = (f"({{ {rt.ctype} {x} = {self.expr(div.left, want=rt)}; {rt.ctype} {y} = "
+                     f"{self.expr(div.right, want=rt)}; if ({y} == 0) {en} = 0; "
+                     f"{y} == 0 ? ({rt.ctype})0 : {q}; }})")
+        return (f"({{ uint8_t {en} = {en_c}; {self.ctype(rt)} {r}; "
+                f"if ({en}) {r} = {value}; else PLC__ZERO({r});"
+                f"{eno} {r}; }})")
+
+    def call_value(self, e: A.Call, t: Type | None, want: Type | None) -> str:
+        """The value of a call without EN/ENO."""
+        tgt = self.p.calls[e]
+        if tgt.kind == "function":
+            return self.fn_call(e)
+        if tgt.kind == "alias":
+            assert tgt.alias is not None
+            return self.expr(tgt.alias, want=want if t is None else t)
+        if tgt.kind == "conv":
+            assert tgt.conv is not None
+            return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
+                                   *tgt.conv)
+        return self.std_call(e, t)
 
     def literal(self, e: A.Literal, t: Type | None, negate: bool = False) -> str:
         v = e.value

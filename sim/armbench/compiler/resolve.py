@@ -9,6 +9,7 @@ Declarations live in resolve_decl.py, standard-function typing in resolve_std.py
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
 from typing import Any
 
 from . import ast as A
@@ -627,6 +628,33 @@ class Checker(Declarations):
 
     # ---------------------------------------------------------------- calls
     def call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
+        """A call; its implicit EN input and ENO output (any function, FB or standard function
+        takes them, by name) are taken off the argument list and kept on its CallTarget."""
+        en = eno = None
+        if any(a.name is not None and a.name.upper() in ("EN", "ENO") for a in c.args):
+            rest: list[A.Arg] = []
+            for a in c.args:
+                n = a.name.upper() if a.name is not None else ""
+                if n == "EN" and not a.is_output:
+                    en = a.value
+                elif n == "ENO" and a.is_output:
+                    eno = a.value
+                else:
+                    rest.append(a)
+            c.args = rest
+        t = self._call(c, statement, expected)
+        if en is None and eno is None:
+            return t
+        if en is not None:
+            self.coerce_to(en, self.expr(en, BOOL), BOOL, "EN")
+        if eno is not None:
+            self.coerce_to(eno, BOOL, self.lvalue(eno), "ENO")
+        tgt = self.calls.get(c)
+        if tgt is not None:
+            self.calls[c] = replace(tgt, en=en, eno=eno)
+        return t
+
+    def _call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
         if not isinstance(c.callee, A.Name):
             if self.expr(c.callee, None) is not ERROR_T:
                 self.d.error(c.pos, "E0400", "only named POUs and FB instances can be called")

@@ -58,6 +58,9 @@ class CallTarget:
     # "alias": a standard function in call form (ADD(a, b), GT(a, b, c)) computed as the
     # operator expression it stands for, built from the call's own argument nodes
     alias: A.Expr | None = None
+    # the implicit EN input and ENO output every call has (`F(EN := c, ..., ENO => ok)`)
+    en: A.Expr | None = None
+    eno: A.Expr | None = None
 
 
 @dataclass(frozen=True)
