@@ -762,15 +762,15 @@ class Checker(Declarations):
                 tree = A.Binary(c.pos, "AND", tree, p)
         else:
             tree = args[0]
-            for a in args[1:]:
-                tree = A.Binary(c.pos, "DIV" if key == "DIV" else op, tree, a)
+            for x in args[1:]:
+                tree = A.Binary(c.pos, "DIV" if key == "DIV" else op, tree, x)
         t = self.expr(tree, expected)
         if key in ("ADD_TIME", "SUB_TIME", "MULTIME", "DIVTIME") and t is not ERROR_T and \
                 t is not TIME:
             self.d.error(c.pos, "E0300", f"{key} computes on TIME, not {t}")
             return ERROR_T
-        self.calls[c] = CallTarget("alias", inputs=tuple((f"IN{i + 1}", a)
-                                                         for i, a in enumerate(args)),
+        self.calls[c] = CallTarget("alias", inputs=tuple((f"IN{i + 1}", x)
+                                                         for i, x in enumerate(args)),
                                    alias=tree)
         return t
 
