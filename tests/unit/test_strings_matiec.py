@@ -70,13 +70,13 @@ def _program() -> tuple[str, int]:
         var(f"w2s_{k}", "STRING", f"WORD_TO_STRING(INT_TO_WORD({i}))")
     for k, t in enumerate(TIMES):
         var(f"t2s_{k}", "STRING", f"TIME_TO_STRING({t})")
-    for k, s in enumerate(PARSE):
-        var(f"s2i_{k}", "INT", f"STRING_TO_INT({s})")
-        var(f"s2l_{k}", "LINT", f"STRING_TO_LINT({s})")
-        var(f"s2r_{k}", "LREAL", f"STRING_TO_LREAL({s})")
-        var(f"s2b_{k}", "BOOL", f"STRING_TO_BOOL({s})")
+    for k, txt in enumerate(PARSE):
+        var(f"s2i_{k}", "INT", f"STRING_TO_INT({txt})")
+        var(f"s2l_{k}", "LINT", f"STRING_TO_LINT({txt})")
+        var(f"s2r_{k}", "LREAL", f"STRING_TO_LREAL({txt})")
+        var(f"s2b_{k}", "BOOL", f"STRING_TO_BOOL({txt})")
         # in seconds: run-st.sh's TIME(<s>s <ns>ns) has a space the value parser stops at
-        var(f"s2t_{k}", "LINT", f"TIME_TO_LINT(STRING_TO_TIME({s}))")
+        var(f"s2t_{k}", "LINT", f"TIME_TO_LINT(STRING_TO_TIME({txt}))")
     text = ("PROGRAM StringGrid\n  VAR\n" + "\n".join(decls) + "\n  END_VAR\n" +
             "\n".join(body) + "\nEND_PROGRAM\n"
             "CONFIGURATION Config0\n  RESOURCE Res0 ON PLC\n"
