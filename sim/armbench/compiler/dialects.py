@@ -30,6 +30,7 @@ from collections.abc import Iterator
 from . import ast as A
 from .diagnostics import Diagnostics
 from .reserved import codesys_family_reserves, matiec_reserves
+from .source import SourcePos
 from .rules import declared_names
 from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
@@ -222,7 +223,7 @@ def check_string_values(prog: CheckedProgram, diags: Diagnostics, target: Target
     sev = target.severity(frozenset(), warned_by=frozenset({OPENPLC_V4, CODESYS}))
     if sev is None:
         return
-    found: list[tuple[object, str]] = []
+    found: list[tuple[SourcePos, str]] = []
     for e, t in prog.expr_types.items():
         if isinstance(e, A.Binary) and e.op in _STRING_CMP and \
                 prog.expr_types.get(e.left) is STRING and t is not None:
@@ -235,5 +236,5 @@ def check_string_values(prog: CheckedProgram, diags: Diagnostics, target: Target
                           "match (FIND('Hello', 'lo') = 6 there, 4 in OpenPLC v4 and CODESYS): "
                           "search for one character, or compare MID(...) in a loop"))
     for pos, msg in sorted(found, key=lambda f: str(f[0])):
-        diags.report(sev, pos, "E0121", msg)  # type: ignore[arg-type]
+        diags.report(sev, pos, "E0121", msg)
 
