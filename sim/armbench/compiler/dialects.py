@@ -30,8 +30,8 @@ from collections.abc import Iterator
 from . import ast as A
 from .diagnostics import Diagnostics
 from .reserved import codesys_family_reserves, matiec_reserves
-from .source import SourcePos
 from .rules import declared_names
+from .source import SourcePos
 from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
 from .targets import CODESYS, OPENPLC, OPENPLC_V4, Target
