@@ -64,6 +64,10 @@ UNROLL_NODES = 1200
 FN_FRAME_KINDS = (A.VAR_INPUT, A.VAR_IN_OUT, A.VAR_OUTPUT)
 
 
+# the string functions whose ENO MatIEC clears for a negative argument (TEST_EN_COND)
+_STRING_ENO_ARGS = {"LEFT": ("L",), "RIGHT": ("L",), "MID": ("L", "P"), "INSERT": ("P",),
+                    "DELETE": ("L", "P"), "REPLACE": ("L", "P")}
+
 STRING_CDEF = "typedef struct { int8_t len; uint8_t body[126]; } plc_string_t;\n"
 
 
@@ -1193,6 +1197,25 @@ class Emitter:
             value = (f"({{ {rt.ctype} {x} = {self.expr(div.left, want=rt)}; {rt.ctype} {y} = "
                      f"{self.expr(div.right, want=rt)}; if ({y} == 0) {en} = 0; "
                      f"{y} == 0 ? ({rt.ctype})0 : {q}; }})")
+        std_name = tgt.std.name if tgt.kind == "std" and tgt.std is not None else ""
+        neg = _STRING_ENO_ARGS.get(std_name)
+        if neg is not None:
+            # MatIEC's TEST_EN_COND: a negative length or position gives '' and ENO FALSE
+            temps, decls = [], []
+            for _key, a in tgt.inputs:
+                at = self.p.expr_types[a]
+                x = self.loc.tmp()
+                temps.append(x)
+                if at is STRING:
+                    decls.append(f"plc_string_t {x} = {self.expr(a, want=STRING)};")
+                else:
+                    want_t = at if not isinstance(at, LiteralType) else DINT
+                    decls.append(f"int64_t {x} = (int64_t)({self.expr(a, want=want_t)});")
+            bad = " || ".join(f"{temps[i]} < 0" for i, (key, _) in enumerate(tgt.inputs)
+                              if key in neg)
+            fn = "plc__str_" + std_name.lower()
+            value = (f"({{ {' '.join(decls)} if ({bad}) {en} = 0; "
+                     f"{fn}({', '.join(temps)}, {self.pos(e)}); }})")
         return (f"({{ uint8_t {en} = {en_c}; {self.ctype(rt)} {r}; "
                 f"if ({en}) {r} = {value}; else PLC__ZERO({r});"
                 f"{eno} {r}; }})")
