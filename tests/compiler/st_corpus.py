@@ -19,6 +19,8 @@ literal integers or a name of another integer variable of the instance).
     REAL#x: x rounded to float32, compared exactly (bit equality for REAL results)
     INF, -INF, NAN
     a duration: T#20ms, T#1s500ms, T#-500ms -- compared in nanoseconds
+    a STRING as run-st.sh prints it: 'text' with $$, $' and $hh (hex) escapes -- compared
+    byte for byte (as latin-1 characters)
 
 Every CHECK is a statement about the values after the last scan, wherever it sits in the file.
 """
@@ -66,8 +68,21 @@ def f32(x: float) -> float:
     return float(struct.unpack("f", struct.pack("f", x))[0])
 
 
+_STR_ESC = re.compile(r"\$([0-9A-Fa-f]{2}|[$'NnTtRrPp])")
+_STR_NAMED = {"N": "\n", "T": "\t", "R": "\r", "P": "\f"}
+
+
+def parse_string(text: str) -> str:
+    """'a$27b$0A' -> the characters (bytes as latin-1) it stands for."""
+    body = text.strip()[1:-1]
+    return _STR_ESC.sub(lambda m: _STR_NAMED.get(m.group(1).upper(), m.group(1))
+                        if len(m.group(1)) == 1 else chr(int(m.group(1), 16)), body)
+
+
 def parse_value(text: str) -> Any:
     t = text.strip()
+    if len(t) >= 2 and t[0] == t[-1] == "'":
+        return parse_string(t)
     u = t.upper()
     if u in ("TRUE", "FALSE"):
         return u == "TRUE"
@@ -119,6 +134,8 @@ def compare(check: Check, actual: Any) -> str | None:
     """None when `actual` satisfies the check, else a message."""
     exp = check.value
     bad = f"{check}: got {actual!r}"
+    if isinstance(exp, str):
+        return None if actual == exp else bad
     if isinstance(exp, bool):
         return None if isinstance(actual, bool | int) and bool(actual) == exp and \
             int(actual) in (0, 1) else bad
@@ -313,6 +330,8 @@ def c_expr(top_types: dict[str, Any], path: str, instance: str = INSTANCE,
 
 def parse_matiec_value(text: str) -> Any:
     t = text.strip()
+    if len(t) >= 2 and t[0] == t[-1] == "'":
+        return parse_string(t)
     m = re.fullmatch(r"TIME\((-?\d+)s (-?\d+)ns\)", t)
     if m:
         return int(m.group(1)) * 10**9 + int(m.group(2))

@@ -27,7 +27,7 @@ class Expr(Node):
 
 @dataclass(eq=False)
 class Literal(Expr):
-    kind: str  # "int" | "real" | "bool" | "time" | "enum"
+    kind: str  # "int" | "real" | "bool" | "time" | "enum" | "string" (value: its C bytes)
     value: int | float | bool | str
     text: str
     type_prefix: str | None = None  # REAL#1.0 -> "REAL", Mode#RUN -> "Mode"

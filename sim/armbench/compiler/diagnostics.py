@@ -28,6 +28,14 @@ CODES: dict[str, tuple[str, str]] = {
     "E0108": ("nesting too deep", "MatIEC's parser stack overflows (e.g. beyond 63 nested IFs "
               "or 189 nested parentheses; see Limits below): move inner parts into variables or "
               "FUNCTIONs (long flat chains like a + b + c are fine)"),
+    "E0120": ("STRING form OpenPLC v3 does not build",
+              "declare STRING (MatIEC's 126-byte string; OpenPLC v3's build fails on STRING[n] "
+              "and WSTRING) and write literals of at most 125 bytes with $N, not $L"),
+    "E0121": ("STRING comparison or FIND computed differently by the targets",
+              "OpenPLC v3 (MatIEC) compares only the common prefix of two STRINGs and its FIND "
+              "skips after a partial match; OpenPLC v4 and CODESYS compare whole strings: "
+              "compare LEN as well, FIND one character (a warning for --target openplc-v4, "
+              "codesys and all)"),
     "E0111": ("CONFIGURATION out of form",
               "write CONFIGURATION Config0 / RESOURCE Res0 ON PLC / TASK MainTask(INTERVAL := "
               "T#10ms, PRIORITY := 0); / PROGRAM Inst WITH MainTask : Main; / END_RESOURCE / "

@@ -31,10 +31,11 @@ from . import ast as A
 from .diagnostics import Diagnostics
 from .reserved import codesys_family_reserves, matiec_reserves
 from .rules import declared_names
+from .source import SourcePos
 from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
-from .targets import CODESYS, OPENPLC, Target
-from .types import ElemType, Type
+from .targets import CODESYS, OPENPLC, OPENPLC_V4, Target
+from .types import STRING, ElemType, Type
 
 _BOTH = frozenset({OPENPLC, CODESYS})
 _CODESYS = frozenset({CODESYS})
@@ -46,6 +47,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_trunc_narrowing(prog, diags, target)
     check_element_out_arguments(prog, diags, target)
     check_configuration_names(prog, diags, target)
+    check_string_values(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -207,3 +209,32 @@ def check_configuration_names(prog: CheckedProgram, diags: Diagnostics, target: 
     if res.name.upper() != "RES0":
         diags.report(sev, res.pos, "E0602", f"RESOURCE '{res.name or '<none>'}': OpenPLC's "
                      f"upload needs it to be named Res0{where}")
+
+
+# ------------------------------------------------------------------ STRING values
+_STRING_CMP = {"=", "<>", "<", "<=", ">", ">="}
+
+
+def check_string_values(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """E0121: a STRING comparison or FIND, whose value MatIEC (OpenPLC v3) computes its own
+    way: it compares only the common prefix ('ab' = 'abc' is TRUE) and its FIND skips after a
+    partial match (FIND('Hello', 'lo') = 6); STruC++ (OpenPLC v4, STRING of 254 characters)
+    and CODESYS compare whole strings and find substrings (their runtimes' sources)."""
+    sev = target.severity(frozenset(), warned_by=frozenset({OPENPLC_V4, CODESYS}))
+    if sev is None:
+        return
+    found: list[tuple[SourcePos, str]] = []
+    for e, t in prog.expr_types.items():
+        if isinstance(e, A.Binary) and e.op in _STRING_CMP and \
+                prog.expr_types.get(e.left) is STRING and t is not None:
+            found.append((e.pos, f"'{e.op}' of STRINGs: OpenPLC v3 (MatIEC) compares only "
+                          "the common prefix ('ab' = 'abc' is TRUE there), OpenPLC v4 and "
+                          "CODESYS the whole strings: compare LEN too where lengths differ"))
+    for c, tgt in prog.calls.items():
+        if tgt.kind == "std" and tgt.std is not None and tgt.std.name == "FIND":
+            found.append((c.pos, "FIND: OpenPLC v3's (MatIEC's) FIND skips after a partial "
+                          "match (FIND('Hello', 'lo') = 6 there, 4 in OpenPLC v4 and CODESYS): "
+                          "search for one character, or compare MID(...) in a loop"))
+    for pos, msg in sorted(found, key=lambda f: str(f[0])):
+        diags.report(sev, pos, "E0121", msg)
+

@@ -20,10 +20,13 @@ from dataclasses import dataclass, field
 
 from . import ast as A
 from .stdlib import STD_FB_BODIES, STD_FBS
+from .strings import c_initializer, string_literal
 from .symbols import CallTarget, CheckedProgram, PouSym, VarSym
 from .types import (
     BOOL,
+    DINT,
     ELEMENTARY,
+    STRING,
     ArrayType,
     ElemType,
     EnumType,
@@ -59,6 +62,13 @@ UNROLL_TRIPS = 8
 UNROLL_NODES = 1200
 # what a FUNCTION's frame struct holds (its other variables are locals of its C function)
 FN_FRAME_KINDS = (A.VAR_INPUT, A.VAR_IN_OUT, A.VAR_OUTPUT)
+
+
+# the string functions whose ENO MatIEC clears for a negative argument (TEST_EN_COND)
+_STRING_ENO_ARGS = {"LEFT": ("L",), "RIGHT": ("L",), "MID": ("L", "P"), "INSERT": ("P",),
+                    "DELETE": ("L", "P"), "REPLACE": ("L", "P")}
+
+STRING_CDEF = "typedef struct { int8_t len; uint8_t body[126]; } plc_string_t;\n"
 
 
 @dataclass
@@ -204,7 +214,9 @@ class Emitter:
         storage = "extern plc_image_t plc_image;\nextern plc_globals_t plc_globals;\n"
         shared = decls + storage + "".join(self.forward) + "".join(self.std_code)
         code = "#include \"iec_runtime.h\"\n" + shared + "".join(self.pieces) + main
-        return CUnit(decls + storage + "".join(self.ffi_only), code, shared=shared,
+        # the runtime header defines plc_string_t for the C; cffi sees only the declarations
+        ffi_decls = STRING_CDEF + decls if "plc_string_t" in decls else decls
+        return CUnit(ffi_decls + storage + "".join(self.ffi_only), code, shared=shared,
                      pieces=self.pieces, main=main)
 
     def pou_struct(self, sym: PouSym) -> None:
@@ -328,8 +340,10 @@ class Emitter:
             if isinstance(t, EnumType) and t.values:
                 first = next(iter(t.values.values()))[1]
                 return str(first if t.default is None else t.default)
-            return "0"
+            return "{0}" if t is STRING else "0"
         assert isinstance(init, A.Expr)
+        if isinstance(init, A.Literal) and init.kind == "string":
+            return self.string_init(init)
         # file scope: fewer than SPILL_EVERY operators here (is_shared_constant), no spill
         return self.expr(init, want=t)
 
@@ -825,7 +839,8 @@ class Emitter:
                     return ""  # the named result is the result itself
             if isinstance(s.value, A.Call) and not is_scalar(tt):
                 call = self.p.calls[s.value]
-                if call.kind == "function" and self.may_target(s.target, call):
+                if call.kind == "function" and call.en is None and call.eno is None and \
+                        self.may_target(s.target, call):
                     return f"{ind}{self.fn_call(s.value, dest=s.target)};\n"
             return f"{ind}{self.assign_c(self.lvalue(s.target), s.value, tt)}\n"
         if isinstance(s, A.CallStmt):
@@ -927,7 +942,15 @@ class Emitter:
                 out += f"{ind}    {inst}.{key} = &{self.lvalue(e)};\n"
             else:
                 out += f"{ind}    {self.assign_c(f'{inst}.{key}', e, v.type)}\n"
-        out += f"{ind}    {cname}_body(&{inst});\n"
+        if tgt.en is None and tgt.eno is None:
+            out += f"{ind}    {cname}_body(&{inst});\n"
+        else:
+            # EN FALSE: the inputs are set and the outputs copied, the body does not run
+            en = self.loc.tmp()
+            en_c = self.expr(tgt.en, want=BOOL) if tgt.en is not None else "1"
+            out += f"{ind}    uint8_t {en} = {en_c};\n{ind}    if ({en}) {cname}_body(&{inst});\n"
+            if tgt.eno is not None:
+                out += f"{ind}    {self.lvalue(tgt.eno)} = {en};\n"
         for key, e in tgt.outputs:
             out += f"{ind}    {self.copy_c(self.lvalue(e), f'{inst}.{key}', sym.vars[key].type)}\n"
         return out + f"{ind}}}\n"
@@ -1151,18 +1174,70 @@ class Emitter:
         if isinstance(e, A.Binary):
             return self.binary(e, t)
         if isinstance(e, A.Call):
-            tgt = self.p.calls[e]
-            if tgt.kind == "function":
-                return self.fn_call(e)
-            if tgt.kind == "conv":
-                assert tgt.conv is not None
-                return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
-                                       *tgt.conv)
-            return self.std_call(e, t)
+            if self.p.calls[e].en is not None or self.p.calls[e].eno is not None:
+                return self.en_call(e, t, want)
+            return self.call_value(e, t, want)
         raise AssertionError(f"expression {type(e).__name__}")
+
+    def en_call(self, e: A.Call, t: Type | None, want: Type | None) -> str:
+        """A call with EN/ENO, as MatIEC's C runs it: with EN FALSE nothing is computed, the
+        result is 0 (zero bytes), a FUNCTION's outputs are not written, ENO is FALSE."""
+        tgt = self.p.calls[e]
+        rt = t if not isinstance(t, LiteralType) else want if isinstance(want, ElemType) else t
+        assert rt is not None
+        en, r = self.loc.tmp(), self.loc.tmp()
+        en_c = self.expr(tgt.en, want=BOOL) if tgt.en is not None else "1"
+        eno = f" {self.lvalue(tgt.eno)} = {en};" if tgt.eno is not None else ""
+        value = self.call_value(e, t, want)
+        div = tgt.alias if isinstance(tgt.alias, A.Binary) and tgt.alias.op == "DIV" else None
+        if div is not None and isinstance(rt, ElemType):
+            # DIV by zero: 0 and ENO FALSE, as MatIEC's DIV (TEST_EN_COND)
+            x, y = self.loc.tmp(), self.loc.tmp()
+            q = self.binary_node(A.Binary(div.pos, "/", div.left, div.right), rt, x, y)
+            value = (f"({{ {rt.ctype} {x} = {self.expr(div.left, want=rt)}; {rt.ctype} {y} = "
+                     f"{self.expr(div.right, want=rt)}; if ({y} == 0) {en} = 0; "
+                     f"{y} == 0 ? ({rt.ctype})0 : {q}; }})")
+        std_name = tgt.std.name if tgt.kind == "std" and tgt.std is not None else ""
+        neg = _STRING_ENO_ARGS.get(std_name)
+        if neg is not None:
+            # MatIEC's TEST_EN_COND: a negative length or position gives '' and ENO FALSE
+            temps, decls = [], []
+            for _key, a in tgt.inputs:
+                at = self.p.expr_types[a]
+                x = self.loc.tmp()
+                temps.append(x)
+                if at is STRING:
+                    decls.append(f"plc_string_t {x} = {self.expr(a, want=STRING)};")
+                else:
+                    want_t = at if not isinstance(at, LiteralType) else DINT
+                    decls.append(f"int64_t {x} = (int64_t)({self.expr(a, want=want_t)});")
+            bad = " || ".join(f"{temps[i]} < 0" for i, (key, _) in enumerate(tgt.inputs)
+                              if key in neg)
+            fn = "plc__str_" + std_name.lower()
+            value = (f"({{ {' '.join(decls)} if ({bad}) {en} = 0; "
+                     f"{fn}({', '.join(temps)}, {self.pos(e)}); }})")
+        return (f"({{ uint8_t {en} = {en_c}; {self.ctype(rt)} {r}; "
+                f"if ({en}) {r} = {value}; else PLC__ZERO({r});"
+                f"{eno} {r}; }})")
+
+    def call_value(self, e: A.Call, t: Type | None, want: Type | None) -> str:
+        """The value of a call without EN/ENO."""
+        tgt = self.p.calls[e]
+        if tgt.kind == "function":
+            return self.fn_call(e)
+        if tgt.kind == "alias":
+            assert tgt.alias is not None
+            return self.expr(tgt.alias, want=want if t is None else t)
+        if tgt.kind == "conv":
+            assert tgt.conv is not None
+            return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
+                                   *tgt.conv)
+        return self.std_call(e, t)
 
     def literal(self, e: A.Literal, t: Type | None, negate: bool = False) -> str:
         v = e.value
+        if e.kind == "string":
+            return f"((plc_string_t){self.string_init(e)})"
         if e.kind == "bool":
             return "1" if v else "0"
         if e.kind == "enum":
@@ -1184,6 +1259,10 @@ class Emitter:
                 return f"(({t.ctype}){n}{'ULL' if t.kind in ('uint', 'bits') and n >= 0 else 'LL'})"
             return f"(({t.ctype}){n})"
         return f"((int64_t){n}LL)"
+
+    def string_init(self, e: A.Literal) -> str:
+        return c_initializer(string_literal(e.text[e.text.index("'"):] if "'" in e.text
+                                            else e.text))
 
     def binary(self, e: A.Binary, t: Type | None) -> str:
         """`a + b + c + ...` in a loop: its left spine is as deep as the chain is long. Inside
@@ -1220,9 +1299,15 @@ class Emitter:
         op = e.op
         cmp = {"=": "==", "<>": "!=", "<": "<", "<=": "<=", ">": ">", ">=": ">="}
         if op in cmp:
+            if self.p.expr_types.get(e.left) is STRING:
+                return f"(plc__str_cmp({a}, {b}) {cmp[op]} 0)"
             return f"({a} {cmp[op]} {b})"
         assert isinstance(t, ElemType), f"binary {op} on {t}"
         ct = t.ctype
+        if op == "DIV":  # MatIEC's DIV function: a zero divisor gives 0 (the operator traps)
+            x, y = self.loc.tmp(), self.loc.tmp()
+            q = self.binary_node(A.Binary(e.pos, "/", e.left, e.right), t, x, y)
+            return f"({{ {ct} {x} = {a}; {ct} {y} = {b}; {y} == 0 ? ({ct})0 : {q}; }})"
         if op in ("AND", "OR", "XOR"):
             c = {"AND": "&", "OR": "|", "XOR": "^"}[op]
             return f"({a} {c} {b})" if t.kind == "bool" else f"(({ct})({a} {c} {b}))"
@@ -1246,6 +1331,27 @@ class Emitter:
         return f"(({ct})({a} {op} {b}))"
 
     def conversion(self, a: str, src: ElemType, dst: ElemType) -> str:
+        if dst is STRING:
+            # MatIEC's *_TO_STRING: snprintf formats, REAL through double with %.10g
+            if src.kind == "bool":
+                return f"plc__str_fmt_bool({a})"
+            if src.kind == "bits":
+                return f"plc__str_fmt_bits((uint64_t){a})"
+            if src.kind == "sint":
+                return f"plc__str_fmt_s((int64_t){a})"
+            if src.kind == "uint":
+                return f"plc__str_fmt_u((uint64_t){a})"
+            if src.is_real:
+                return f"plc__str_fmt_real((double){a})"
+            return f"plc__str_fmt_time({a})"
+        if src is STRING:
+            if dst.kind == "bool":
+                return f"((uint8_t)plc__str_to_bool({a}))"
+            if dst.is_real:
+                return f"(({dst.ctype})plc__str_to_real({a}))"
+            if dst.kind == "time":
+                return f"plc__str_to_time({a})"
+            return f"(({dst.ctype})plc__str_to_int({a}))"
         if dst.kind == "bool":
             return f"({a} != 0)"
         # TIME converts in seconds, as MatIEC does (verified with its runtime)
@@ -1287,6 +1393,8 @@ class Emitter:
             x = self.expr(args[0], want=t)
             y = self.expr(args[1], want=bt)
             return f"pow{'f' if t.bits == 32 else ''}({x}, ({t.ctype}){y})"
+        if f.kind.startswith("str_"):
+            return self.string_call(c, name, args, t)
         assert isinstance(t, ElemType)
         ct = t.ctype
         if name == "MOVE":
@@ -1362,6 +1470,31 @@ class Emitter:
         raise AssertionError(f"std function {name}")
 
 
+    def string_call(self, c: A.Call, name: str, args: list[A.Expr], t: Type | None) -> str:
+        """MatIEC's string functions (runtime plc__str_*); every argument evaluated once, in
+        the order written."""
+        vals = []
+        for a in args:
+            at = self.p.expr_types[a]
+            vals.append(self.expr(a, want=at if not isinstance(at, LiteralType) else DINT))
+        pos = self.pos(c)
+        if name == "LEN":
+            ct = t.ctype if isinstance(t, ElemType) else "int64_t"
+            return f"(({ct})({vals[0]}).len)"
+        if name == "FIND":
+            ct = t.ctype if isinstance(t, ElemType) else "int64_t"
+            return f"(({ct})plc__str_find({vals[0]}, {vals[1]}))"
+        if name == "CONCAT":
+            r = self.loc.tmp()
+            cats = " ".join(f"plc__str_cat(&{r}, {v});" for v in vals)
+            return f"({{ plc_string_t {r} = plc__str_empty(); {cats} {r}; }})"
+        fn = {"LEFT": "left", "RIGHT": "right", "MID": "mid", "INSERT": "insert",
+              "DELETE": "delete", "REPLACE": "replace"}[name]
+        ints = [f"(int64_t)({v})" if self.p.expr_types[a] is not STRING else v
+                for a, v in zip(args, vals, strict=True)]
+        return f"plc__str_{fn}({', '.join(ints)}, {pos})"
+
+
 def nodes(obj: object) -> list[A.Node]:
     """Every AST node in obj (a node or a list of them), with a stack: A.walk, faster (no
     dataclass field lists) and the nodes only."""
@@ -1425,8 +1558,10 @@ def statement_lists(body: list[A.Stmt]) -> Iterator[list[A.Stmt]]:
 
 
 def is_scalar(t: Type) -> bool:
-    """Held in one C scalar (an elementary or enumerated type), not a STRUCT or ARRAY."""
-    return isinstance(t, ElemType | EnumType | LiteralType)
+    """Held in one C scalar (an elementary or enumerated type), not a STRUCT, ARRAY or
+    STRING (a C struct, copied and passed as the STRUCTs are)."""
+    return isinstance(t, EnumType | LiteralType) or (isinstance(t, ElemType) and
+                                                     t.kind != "string")
 
 
 def effective_init(t: Type, init: A.Init | None) -> A.Init | None:

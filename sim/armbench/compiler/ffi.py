@@ -21,7 +21,7 @@ from . import ast as A
 from .declarations import load_declarations
 from .emit_c import const_name, is_shared_constant
 from .symbols import CheckedProgram, PouSym, VarSym
-from .types import ArrayType, ElemType, EnumType, PouType, StructType, Type
+from .types import STRING, STRING_MAX, ArrayType, ElemType, EnumType, PouType, StructType, Type
 
 if TYPE_CHECKING:
     from .build import BuiltLibrary
@@ -45,6 +45,9 @@ class Values:
         if isinstance(t, ElemType):
             if t.kind == "bool":
                 return bool(c)
+            if t.kind == "string":
+                n = min(max(int(c.len), 0), STRING_MAX)
+                return bytes(c.body[0:n]).decode("latin-1")
             return c
         if isinstance(t, EnumType):
             return int(c)
@@ -71,11 +74,32 @@ class Values:
 
     def assign(self, owner: Any, key: str, t: Type, value: Any, what: str) -> None:
         """owner.key = value, converting and checking."""
+        if t is STRING:
+            self.set_string(getattr(owner, key), value, what)
+            return
         if isinstance(t, ElemType | EnumType):
             setattr(owner, key, self.scalar(t, value, what))
             return
         target = getattr(owner, key)
         self.fill(target, t, value, what)
+
+    def set_string(self, target: Any, value: Any, what: str) -> None:
+        """A STRING (a str of latin-1 characters, or bytes) into a plc_string_t."""
+        if isinstance(value, str):
+            try:
+                data = value.encode("latin-1")
+            except UnicodeEncodeError:
+                raise PlcArgumentError(f"{what}: {value!r} has characters outside latin-1 "
+                                       "(a STRING holds bytes)") from None
+        elif isinstance(value, bytes | bytearray):
+            data = bytes(value)
+        else:
+            raise PlcArgumentError(f"{what}: expected a str for STRING, got {value!r}")
+        if len(data) > STRING_MAX:
+            raise PlcArgumentError(f"{what}: {len(data)} characters; a STRING holds at most "
+                                   f"{STRING_MAX} (MatIEC's STR_MAX_LEN)")
+        target.body = list(data.ljust(STRING_MAX, b"\0"))
+        target.len = len(data)
 
     def scalar(self, t: Type, value: Any, what: str) -> Any:
         if isinstance(t, ElemType) and t.is_real:
@@ -100,7 +124,9 @@ class Values:
             if len(flat) != t.size:
                 raise PlcArgumentError(f"{what}: expected {t.size} values for {t}, got {len(flat)}")
             for i, v in enumerate(flat):
-                if isinstance(t.element, ElemType | EnumType):
+                if t.element is STRING:
+                    self.set_string(target.v[i], v, f"{what}[{i}]")
+                elif isinstance(t.element, ElemType | EnumType):
                     target.v[i] = self.scalar(t.element, v, f"{what}[{i}]")
                 else:
                     self.fill(target.v[i], t.element, v, f"{what}[{i}]")
@@ -182,7 +208,9 @@ class Instance:
                 ffi = self._m.ffi
                 item = ffi.typeof(getattr(self._c, v.key)).item
                 store = ffi.new(f"{ffi.getctype(item)} *")
-                if isinstance(v.type, ElemType | EnumType):
+                if v.type is STRING:
+                    self._m.values.set_string(store[0], value, what)
+                elif isinstance(v.type, ElemType | EnumType):
                     store[0] = self._m.values.scalar(v.type, value, what)
                 else:
                     self._m.values.fill(store[0], v.type, value, what)

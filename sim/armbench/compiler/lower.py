@@ -13,6 +13,7 @@ from . import ast as A
 from .diagnostics import Diagnostics
 from .parse import ParsedFile
 from .source import SourcePos
+from .strings import StringLiteralError, string_literal
 
 _TIME_UNITS = {"D": 86_400_000_000_000, "H": 3_600_000_000_000, "M": 60_000_000_000,
                "S": 1_000_000_000, "MS": 1_000_000, "US": 1_000, "NS": 1}
@@ -436,7 +437,8 @@ class Lowerer:
                     else:
                         args.append(A.Arg(self.pos(a), None, self.expr(a)))
             return A.Call(p, self.expr(self.field(n, "function")), args)
-        if t in ("integer_literal", "real_literal", "boolean_literal", "time_literal"):
+        if t in ("integer_literal", "real_literal", "boolean_literal", "time_literal",
+                 "string_literal"):
             return self.literal(n, None)
         if t == "typed_literal":
             prefix = self.text(self.field(n, "type")).upper()
@@ -471,6 +473,15 @@ class Lowerer:
                 return A.Literal(p, "bool", raw.upper() == "TRUE", text, prefix)
             if n.type == "time_literal":
                 return A.Literal(p, "time", parse_time_literal(raw), text, prefix)
+            if n.type == "string_literal":
+                if prefix is not None:
+                    raise StringLiteralError(f"{prefix}#'...': MatIEC's grammar has no typed "
+                                             "string literal; write the '...' alone")
+                return A.Literal(p, "string", string_literal(raw).data.decode("latin-1"),
+                                 text, prefix)
+        except StringLiteralError as exc:
+            self.diags.error(p, "E0120", str(exc))
+            return A.Literal(p, "string", "", text, prefix)
         except ValueError as exc:
             raise _Unsupported(n, f"malformed literal {raw!r}") from exc
         raise _Unsupported(n, f"literal {raw!r}")

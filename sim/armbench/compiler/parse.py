@@ -127,6 +127,10 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
             hint = hints.hint(node, context)
             if hint is not None:
                 diags.error(pf.pos(node), "E0111", hint)
+            elif node.type == "ERROR" and _sized_string(node):
+                diags.error(pf.pos(node), "E0120", "STRING[n]: OpenPLC v3's MatIEC loses the "
+                            "variable (\"not declared\" where it is used; iec2c crashes when "
+                            "it is not used): declare STRING (126 bytes)")
             elif node.type == "ERROR":
                 diags.error(pf.pos(node), "E0100", _describe_error(pf, node))
             elif node.type == ";" and _after_end_struct(pf.data, node.start_byte):
@@ -138,6 +142,15 @@ def _report_syntax_errors(pf: ParsedFile, diags: Diagnostics) -> None:
         if node.has_error:
             inner = node.type if node.type in (CONFIGURATION, RESOURCE) else context
             stack.extend((child, inner) for child in reversed(node.children))
+
+
+def _sized_string(node: ts.Node) -> bool:
+    """`STRING[n]` or `WSTRING[n]`: the grammar reads the `[n]` after a string type as an
+    error."""
+    prev = node.prev_sibling
+    first = node.children[0] if node.children else None
+    return prev is not None and prev.type == "string_type" and first is not None and \
+        first.type == "["
 
 
 def is_array_default_hole(node: ts.Node) -> bool:

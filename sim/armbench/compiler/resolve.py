@@ -9,6 +9,7 @@ Declarations live in resolve_decl.py, standard-function typing in resolve_std.py
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
 from typing import Any
 
 from . import ast as A
@@ -18,7 +19,7 @@ from .diagnostics import Diagnostics
 from .resolve_decl import Declarations
 from .resolve_std import StdCallTyper
 from .source import SourcePos
-from .stdlib import CONVERSIONS, STD_FBS, STD_FUNCS
+from .stdlib import CALL_FORM_OPERATORS, CONVERSIONS, STD_FBS, STD_FUNCS
 from .symbols import (
     CallTarget,
     CheckedProgram,
@@ -34,6 +35,7 @@ from .types import (
     INT_LIT,
     LINT,
     REAL_LIT,
+    STRING,
     TIME,
     ArrayType,
     ElemType,
@@ -391,6 +393,8 @@ class Checker(Declarations):
                 return ERROR_T
             self.names[e] = NameRef("enum", enum_value=v[1])
             return et
+        if e.kind == "string":
+            return STRING
         if e.type_prefix is not None:
             t = ELEMENTARY.get(e.type_prefix)
             if t is None:
@@ -493,7 +497,7 @@ class Checker(Declarations):
             return ERROR_T
         return t
 
-    _ARITH = {"+", "-", "*", "/", "MOD", "**"}
+    _ARITH = {"+", "-", "*", "/", "DIV", "MOD", "**"}
     _CMP = {"=", "<>", "<", "<=", ">", ">="}
     _LOGIC = {"AND", "OR", "XOR"}
 
@@ -515,7 +519,7 @@ class Checker(Declarations):
         return lt
 
     def binary_node(self, e: A.Binary, lt: Type, rt: Type) -> Type:
-        op = e.op
+        op = "/" if e.op == "DIV" else e.op  # DIV: the call form's division (operator_call)
         if lt is ERROR_T or rt is ERROR_T:
             return ERROR_T
         if op == "**":
@@ -626,6 +630,33 @@ class Checker(Declarations):
 
     # ---------------------------------------------------------------- calls
     def call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
+        """A call; its implicit EN input and ENO output (any function, FB or standard function
+        takes them, by name) are taken off the argument list and kept on its CallTarget."""
+        en = eno = None
+        if any(a.name is not None and a.name.upper() in ("EN", "ENO") for a in c.args):
+            rest: list[A.Arg] = []
+            for a in c.args:
+                n = a.name.upper() if a.name is not None else ""
+                if n == "EN" and not a.is_output:
+                    en = a.value
+                elif n == "ENO" and a.is_output:
+                    eno = a.value
+                else:
+                    rest.append(a)
+            c.args = rest
+        t = self._call(c, statement, expected)
+        if en is None and eno is None:
+            return t
+        if en is not None:
+            self.coerce_to(en, self.expr(en, BOOL), BOOL, "EN")
+        if eno is not None:
+            self.coerce_to(eno, BOOL, self.lvalue(eno), "ENO")
+        tgt = self.calls.get(c)
+        if tgt is not None:
+            self.calls[c] = replace(tgt, en=en, eno=eno)
+        return t
+
+    def _call(self, c: A.Call, statement: bool, expected: Type | None = None) -> Type:
         if not isinstance(c.callee, A.Name):
             if self.expr(c.callee, None) is not ERROR_T:
                 self.d.error(c.pos, "E0400", "only named POUs and FB instances can be called")
@@ -675,6 +706,8 @@ class Checker(Declarations):
             return dst
         if key in STD_FUNCS:
             return self.std.check(c, STD_FUNCS[key], expected)
+        if key in CALL_FORM_OPERATORS and key not in self.pous:
+            return self.operator_call(c, key, expected)
         sym = self.pous.get(key)
         if sym is None:
             if key == "ATAN2":
@@ -694,6 +727,54 @@ class Checker(Declarations):
             self.call_sites.setdefault((self.cur.key, key), c.pos)
             self.check_struct_return_call(c, sym)
         return self.bind(c, sym, "function", sym.return_type or ERROR_T)
+
+    def operator_call(self, c: A.Call, key: str, expected: Type | None) -> Type:
+        """ADD(a, b, c), GT(IN1 := a, IN2 := b), MULTIME(t, 3), ...: typed and computed as the
+        operator expression (a + b + c; a > b AND b > c for the extensible comparisons), as
+        MatIEC's standard library declares them. DIV is `/` except that a zero divisor gives
+        0, as MatIEC's DIV function does (the operator `/` traps)."""
+        op, least, most = CALL_FORM_OPERATORS[key]
+        args: list[A.Expr] = []
+        if c.args and c.args[0].name is not None:
+            by_index: dict[int, A.Expr] = {}
+            for a in c.args:
+                assert a.name is not None
+                n = a.name.upper()
+                if not (n.startswith("IN") and n[2:].isdigit()) or a.is_output:
+                    self.d.error(a.pos, "E0407", f"{key} has no parameter '{a.name}' (it "
+                                 "takes IN1, IN2" + (", ..." if not most else "") + ")")
+                    return ERROR_T
+                by_index[int(n[2:])] = a.value
+            if sorted(by_index) != list(range(1, len(by_index) + 1)):
+                self.d.error(c.pos, "E0409", f"{key} needs IN1, IN2, ... without gaps")
+                return ERROR_T
+            args = [by_index[i] for i in sorted(by_index)]
+        else:
+            args = [a.value for a in c.args]
+        if len(args) < least or (most and len(args) > most):
+            self.d.error(c.pos, "E0400", f"{key} takes " + (f"{least}" if most == least else
+                         f"at least {least}") + f" arguments, {len(args)} given")
+            return ERROR_T
+        tree: A.Expr
+        if op in self._CMP and len(args) > 2:
+            pairs: list[A.Expr] = [A.Binary(c.pos, op, args[i], args[i + 1])
+                                   for i in range(len(args) - 1)]
+            tree = pairs[0]
+            for p in pairs[1:]:
+                tree = A.Binary(c.pos, "AND", tree, p)
+        else:
+            tree = args[0]
+            for x in args[1:]:
+                tree = A.Binary(c.pos, "DIV" if key == "DIV" else op, tree, x)
+        t = self.expr(tree, expected)
+        if key in ("ADD_TIME", "SUB_TIME", "MULTIME", "DIVTIME") and t is not ERROR_T and \
+                t is not TIME:
+            self.d.error(c.pos, "E0300", f"{key} computes on TIME, not {t}")
+            return ERROR_T
+        self.calls[c] = CallTarget("alias", inputs=tuple((f"IN{i + 1}", x)
+                                                         for i, x in enumerate(args)),
+                                   alias=tree)
+        return t
 
     def check_struct_return_call(self, c: A.Call, sym: PouSym) -> None:
         # iec2c accepts this call, but in a FUNCTION_BLOCK or PROGRAM body it wraps it in a

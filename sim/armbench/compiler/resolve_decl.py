@@ -67,10 +67,14 @@ class Declarations:
                 return self.types[key]
             if key in self.type_decls:
                 return self.named_type(self.type_decls[key], seen)
-            if key.startswith("STRING") or key.startswith("WSTRING"):
-                self.d.error(ref.pos, "E0105", "unsupported construct: STRING variables "
-                             "(the bench models numeric PLC code only)")
+            if key.startswith("WSTRING"):
+                self.d.error(ref.pos, "E0120", "WSTRING: OpenPLC v3's build fails on it (its "
+                             "MatIEC stops with an internal error); use STRING")
                 return ERROR_T
+            if key.startswith("STRING"):
+                self.d.error(ref.pos, "E0120", f"{ref.name}: OpenPLC v3 builds only plain "
+                             "STRING (126 bytes); it fails on STRING[n] and STRING(n)")
+                return ELEMENTARY["STRING"]
             self.d.error(ref.pos, "E0200", f"unknown type '{ref.name}'")
             return ERROR_T
         if isinstance(ref, A.ArrayTypeRef):
@@ -206,6 +210,11 @@ class Declarations:
 
     def check_location(self, decl: A.VarDecl, t: Type) -> None:
         addr = decl.address or ""
+        if isinstance(t, ElemType) and t.kind == "string":
+            self.d.error(decl.pos, "E0600", f"STRING '{decl.name}' at {addr}: no location "
+                         "holds a STRING (MatIEC: bit sizes incompatible; OpenPLC's Modbus "
+                         "maps no STRING); keep it unlocated")
+            return
         if isinstance(t, ArrayType) or not isinstance(t, ElemType):
             self.d.error(decl.pos, "E0600", f"'{decl.name}' at {addr}: only elementary "
                          "variables can be located")

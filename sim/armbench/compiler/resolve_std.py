@@ -14,7 +14,22 @@ from . import ast as A
 from .diagnostics import Diagnostics
 from .stdlib import StdFunc
 from .symbols import CallTarget
-from .types import BOOL, DINT, ERROR_T, INT_LIT, LREAL, REAL_LIT, ElemType, LiteralType, Type
+from .types import (
+    BOOL,
+    DINT,
+    ERROR_T,
+    INT_LIT,
+    LREAL,
+    REAL_LIT,
+    STRING,
+    ElemType,
+    LiteralType,
+    Type,
+)
+
+# arguments of the string functions: S a STRING, N an integer (a position or a length)
+_STR_SIGNATURES = {"LEN": "S", "LEFT": "SN", "RIGHT": "SN", "MID": "SNN", "DELETE": "SNN",
+                   "INSERT": "SSN", "REPLACE": "SSNN", "FIND": "SS"}
 
 
 class ExprChecker(Protocol):
@@ -67,6 +82,13 @@ class StdCallTyper:
                 self.k.coerce_to(ex, t, anchor, f"argument of {f.name}")
             return anchor
 
+        if k.startswith("str_"):
+            return self.string_call(c, f, args, types, expected)
+        if k in ("same_n", "limit") and any(t is STRING for t in types):
+            self.k.d.error(c.pos, "E0105", f"unsupported construct: {f.name} of STRINGs (the "
+                           "bench does not model MatIEC's prefix-only STRING ordering here; "
+                           "compare with < and choose with SEL)")
+            return ERROR_T
         if k in ("real1", "num1", "bits1", "trunc", "move"):
             if not need(1):
                 return ERROR_T
@@ -134,6 +156,10 @@ class StdCallTyper:
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs integers, not {t}")
             if k == "bits_n" and not (isinstance(t, ElemType) and t.is_bits):
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs BOOL or bits, not {t}")
+            elif f.name == "XOR" and isinstance(t, ElemType) and t.kind == "bits":
+                self.k.d.error(c.pos, "E0105", f"unsupported construct: XOR(...) of {t} in "
+                               "call form: OpenPLC's C build fails (MatIEC calls "
+                               f"XOR__{t}__{t}, which its library lacks); write a XOR b")
             if not isinstance(t, ElemType):
                 self.k.d.error(c.pos, "E0300", f"{f.name} needs elementary arguments, not {t}")
                 return ERROR_T
@@ -174,6 +200,44 @@ class StdCallTyper:
             self.k.calls[c] = CallTarget("std", std=f, inputs=(("IN", args[0]), ("N", args[1])))
             return t0
         return ERROR_T
+
+    def string_call(self, c: A.Call, f: StdFunc, args: list[A.Expr], types: list[Type],
+                    expected: Type | None) -> Type:
+        """LEN, LEFT, RIGHT, MID, CONCAT, INSERT, DELETE, REPLACE, FIND: STRING arguments,
+        integer lengths and positions (any integer type, literals as DINT); LEN and FIND
+        return the integer type the context wants, as MatIEC's overloads do."""
+        if f.kind == "str_concat":
+            if len(args) < 2:
+                self.k.d.error(c.pos, "E0400", "CONCAT needs at least 2 arguments")
+                return ERROR_T
+            sig = "S" * len(args)
+        else:
+            sig = _STR_SIGNATURES[f.name]
+            if len(args) != len(sig):
+                self.k.d.error(c.pos, "E0400", f"{f.name} takes {len(sig)} argument(s) "
+                               f"({', '.join(f.params)}), {len(args)} given")
+                return ERROR_T
+        ok = True
+        for a, t, want in zip(args, types, sig, strict=True):
+            if want == "S":
+                self.k.coerce_to(a, t, STRING, f"argument of {f.name}")
+                ok = ok and (t is STRING)
+            elif t is INT_LIT:
+                self.k.coerce_to(a, t, DINT, f"argument of {f.name}")
+            elif not (isinstance(t, ElemType) and t.is_int):
+                self.k.d.error(a.pos, "E0300", f"{f.name} needs an integer length or position, "
+                               f"not {t}")
+                ok = False
+        if not ok:
+            return ERROR_T
+        if f.kind == "str_concat":
+            self.k.calls[c] = numbered(f, args)
+        else:
+            self.k.calls[c] = CallTarget("std", std=f, inputs=tuple(zip(f.params, args,
+                                                                         strict=True)))
+        if f.kind in ("str_len", "str_find"):
+            return expected if isinstance(expected, ElemType) and expected.is_int else INT_LIT
+        return STRING
 
     def order_args(self, c: A.Call, f: StdFunc) -> list[A.Expr] | None:
         if not c.args or c.args[0].name is None:

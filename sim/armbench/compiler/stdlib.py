@@ -33,7 +33,29 @@ STD_FUNCS["NOT"] = StdFunc("NOT", "bits1", ("IN",))
 STD_FUNCS["TRUNC"] = StdFunc("TRUNC", "trunc", ("IN",))
 STD_FUNCS["MOVE"] = StdFunc("MOVE", "move", ("IN",))
 
-# Conversions X_TO_Y between elementary types (no STRING in this bench).
+# MatIEC's character string functions (its iec_std_functions.h, OpenPLC v3): the kind names
+# the typing rule in resolve_std.py, the C lives in runtime/iec_runtime.h (plc__str_*).
+STD_FUNCS["LEN"] = StdFunc("LEN", "str_len", ("IN",))
+STD_FUNCS["LEFT"] = StdFunc("LEFT", "str_cut", ("IN", "L"))
+STD_FUNCS["RIGHT"] = StdFunc("RIGHT", "str_cut", ("IN", "L"))
+STD_FUNCS["MID"] = StdFunc("MID", "str_cut", ("IN", "L", "P"))
+STD_FUNCS["CONCAT"] = StdFunc("CONCAT", "str_concat", ("*",))
+STD_FUNCS["INSERT"] = StdFunc("INSERT", "str_edit", ("IN1", "IN2", "P"))
+STD_FUNCS["DELETE"] = StdFunc("DELETE", "str_cut", ("IN", "L", "P"))
+STD_FUNCS["REPLACE"] = StdFunc("REPLACE", "str_edit", ("IN1", "IN2", "L", "P"))
+STD_FUNCS["FIND"] = StdFunc("FIND", "str_find", ("IN1", "IN2"))
+
+# The operators' standard functions in call form, as the OpenPLC editor writes LD/FBD into ST
+# (ADD(IN1 := a, IN2 := b), GT(a, b, c)): name -> (operator, least and most arguments; 0 = any)
+CALL_FORM_OPERATORS: dict[str, tuple[str, int, int]] = {
+    "ADD": ("+", 2, 0), "MUL": ("*", 2, 0), "SUB": ("-", 2, 2), "DIV": ("/", 2, 2),
+    "GT": (">", 2, 0), "GE": (">=", 2, 0), "EQ": ("=", 2, 0), "LE": ("<=", 2, 0),
+    "LT": ("<", 2, 0), "NE": ("<>", 2, 2),
+    "ADD_TIME": ("+", 2, 2), "SUB_TIME": ("-", 2, 2), "MULTIME": ("*", 2, 2),
+    "DIVTIME": ("/", 2, 2),
+}
+
+# Conversions X_TO_Y between elementary types; STRING converts to and from each of the others
 CONVERSIONS: dict[str, tuple[ElemType, ElemType]] = {}
 for _a in ELEMENTARY.values():
     for _b in ELEMENTARY.values():

@@ -406,7 +406,8 @@ def check_time_conversions(prog: CheckedProgram, body: _BodyNodes, rep: _Reporte
         if tgt is None or tgt.kind != "conv" or tgt.conv is None:
             continue
         src, dst = tgt.conv
-        if "time" not in (src.kind, dst.kind) or dst.kind == "bool" or src.kind == dst.kind:
+        if "time" not in (src.kind, dst.kind) or dst.kind == "bool" or src.kind == dst.kind \
+                or "string" in (src.kind, dst.kind):  # texts, not seconds (matiec-facts.md)
             continue
         rep(node, "E0312", f"{src.name}_TO_{dst.name}: MatIEC (OpenPLC v3) converts TIME from "
             f"and to seconds, {_VIA} milliseconds{_real_time(src, dst)}: the value differs "

@@ -48,13 +48,19 @@ class PouSym:
 
 @dataclass(frozen=True)
 class CallTarget:
-    kind: str  # "function" | "fb" | "std" | "conv"
+    kind: str  # "function" | "fb" | "std" | "conv" | "alias"
     pou: PouSym | None = None
     std: StdFunc | None = None
     conv: tuple[ElemType, ElemType] | None = None
     # bound arguments: parameter key -> expression (inputs/in-outs), outputs -> target expr
     inputs: tuple[tuple[str, A.Expr], ...] = ()
     outputs: tuple[tuple[str, A.Expr], ...] = ()
+    # "alias": a standard function in call form (ADD(a, b), GT(a, b, c)) computed as the
+    # operator expression it stands for, built from the call's own argument nodes
+    alias: A.Expr | None = None
+    # the implicit EN input and ENO output every call has (`F(EN := c, ..., ENO => ok)`)
+    en: A.Expr | None = None
+    eno: A.Expr | None = None
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ class Type:
 @dataclass(frozen=True, eq=False)
 class ElemType(Type):
     name: str
-    kind: str  # "bool" | "sint" (signed int) | "uint" | "bits" | "real" | "time"
+    kind: str  # "bool" | "sint" (signed int) | "uint" | "bits" | "real" | "time" | "string"
     bits: int
     ctype: str
 
@@ -55,6 +55,8 @@ ELEMENTARY: dict[str, ElemType] = {t.name: t for t in [
     _e("DWORD", "bits", 32, "uint32_t"), _e("LWORD", "bits", 64, "uint64_t"),
     _e("REAL", "real", 32, "float"), _e("LREAL", "real", 64, "double"),
     _e("TIME", "time", 64, "int64_t"),
+    # MatIEC's STRING: a length byte (int8_t) and a 126-byte body, whatever was declared
+    _e("STRING", "string", 8 * 127, "plc_string_t"),
 ]}
 BOOL = ELEMENTARY["BOOL"]
 DINT = ELEMENTARY["DINT"]
@@ -62,6 +64,8 @@ LINT = ELEMENTARY["LINT"]
 REAL = ELEMENTARY["REAL"]
 LREAL = ELEMENTARY["LREAL"]
 TIME = ELEMENTARY["TIME"]
+STRING = ELEMENTARY["STRING"]
+STRING_MAX = 126  # MatIEC's STR_MAX_LEN: the body of every STRING
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,6 +8,7 @@
 #include <math.h>
 #include <setjmp.h>
 #include <time.h>
+#include <ctype.h>
 
 /* One program is one translation unit, or, for a faster build of a large one, several
  * compiled in parallel and linked into one library (ARMBENCH_SPLIT defined in each, and
@@ -133,5 +134,227 @@ static inline __attribute__((always_inline)) uint64_t plc__rol(uint64_t v, int64
 static inline __attribute__((always_inline)) uint64_t plc__ror(uint64_t v, int64_t n, int bits) {
     n %= bits;
     return plc__rol(v, n == 0 ? 0 : bits - n, bits);
+}
+
+/* STRING as MatIEC (OpenPLC v3) stores and computes it: every STRING is a signed length
+ * byte and a 126-byte body (STRING[n] is not built by OpenPLC v3), results are cut at 126
+ * bytes, comparisons compare the common prefix only ('ab' = 'abc'), and the standard
+ * functions keep MatIEC's edge cases (measured in its runtime, see docs/matiec-facts.md).
+ * Where MatIEC's C copies a negative or out-of-range byte count (a crash or memory damage
+ * on the PLC) the bench faults instead. */
+#include <stdio.h>
+#include <stdlib.h>
+#define PLC__STR_MAX 126
+typedef struct { int8_t len; uint8_t body[PLC__STR_MAX]; } plc_string_t;
+
+static inline plc_string_t plc__str_empty(void) { plc_string_t r; memset(&r, 0, sizeof r); return r; }
+/* n bytes of s from body index i (i >= -1: byte -1 is the length, which MID with P = 0
+ * reads) to r->body[at]: only what MatIEC's memcpy copies without harm */
+static inline void plc__str_put(plc_string_t *r, int at, const plc_string_t *s, int i, int n,
+                                const char *pos) {
+    if (n < 0 || at < 0 || at + n > PLC__STR_MAX || i < -1 || i + n > PLC__STR_MAX)
+        plc__fault(pos, "STRING function argument out of range: MatIEC's C copies a negative "
+                        "or oversized byte count here (the PLC crashes or corrupts memory)");
+    if (n > 0) memcpy(&r->body[at], (const uint8_t *)s + 1 + i, (size_t)n);
+}
+static inline int plc__str_cmp(plc_string_t a, plc_string_t b) {
+    return memcmp(a.body, b.body, (size_t)(a.len < b.len ? a.len : b.len));
+}
+static inline plc_string_t plc__str_left(plc_string_t in, int64_t l, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    plc__str_put(&r, 0, &in, 0, (int)l, pos);
+    r.len = (int8_t)l;
+    return r;
+}
+static inline plc_string_t plc__str_right(plc_string_t in, int64_t l, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (l < 0) return r;
+    if (l > in.len) l = in.len;
+    plc__str_put(&r, 0, &in, (int)(in.len - l), (int)l, pos);
+    r.len = (int8_t)l;
+    return r;
+}
+static inline plc_string_t plc__str_mid(plc_string_t in, int64_t l, int64_t p, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (l < 0 || p < 0) return r;
+    if (p <= in.len) {
+        p -= 1;
+        if (l + p > in.len) l = in.len - p;
+        plc__str_put(&r, 0, &in, (int)p, (int)l, pos);
+        r.len = (int8_t)l;
+    }
+    return r;
+}
+static inline void plc__str_cat(plc_string_t *r, plc_string_t s) {
+    if (r->len >= PLC__STR_MAX) return;
+    int room = PLC__STR_MAX - r->len;
+    int n = s.len > room ? room : s.len;
+    if (n > 0) memcpy(&r->body[r->len], s.body, (size_t)n);
+    r->len = (int8_t)(r->len + n);
+}
+static inline plc_string_t plc__str_insert(plc_string_t a, plc_string_t b, int64_t p64, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (p64 < 0) return r;
+    int8_t p = (int8_t)p64;  /* MatIEC narrows the position to its length type */
+    int n = p > a.len ? a.len : p;
+    plc__str_put(&r, 0, &a, 0, n, pos);
+    r.len = (int8_t)n; p = (int8_t)n;
+    n = b.len + r.len > PLC__STR_MAX ? PLC__STR_MAX - r.len : b.len;
+    plc__str_put(&r, r.len, &b, 0, n, pos);
+    r.len = (int8_t)(r.len + n);
+    n = a.len - p < PLC__STR_MAX - r.len ? a.len - p : PLC__STR_MAX - r.len;
+    plc__str_put(&r, r.len, &a, p, n, pos);
+    r.len = (int8_t)(r.len + n);
+    return r;
+}
+static inline plc_string_t plc__str_delete(plc_string_t in, int64_t l64, int64_t p64, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (l64 < 0 || p64 < 0) return r;
+    int8_t l = (int8_t)l64, p = (int8_t)p64;
+    int n = p > in.len ? in.len : p - 1;
+    plc__str_put(&r, 0, &in, 0, n, pos);
+    r.len = (int8_t)n; p = (int8_t)n;
+    if (in.len > p + l) {
+        n = in.len - p - l;
+        plc__str_put(&r, r.len, &in, p + l, n, pos);
+        r.len = (int8_t)(r.len + n);
+    }
+    return r;
+}
+static inline plc_string_t plc__str_replace(plc_string_t a, plc_string_t b, int64_t l64, int64_t p64, const char *pos) {
+    plc_string_t r = plc__str_empty();
+    if (l64 < 0 || p64 < 0) return r;
+    int8_t l = (int8_t)l64, p = (int8_t)p64;
+    int n = p > a.len ? a.len : p - 1;
+    plc__str_put(&r, 0, &a, 0, n, pos);
+    r.len = (int8_t)n; p = (int8_t)n;
+    n = b.len < l ? b.len : l;
+    if (n + r.len > PLC__STR_MAX) n = PLC__STR_MAX - r.len;
+    plc__str_put(&r, r.len, &b, 0, n, pos);
+    r.len = (int8_t)(r.len + n);
+    p = (int8_t)(p + l);
+    if (r.len < PLC__STR_MAX && p < a.len) {
+        n = a.len - p;
+        plc__str_put(&r, r.len, &a, p, n, pos);
+        r.len = (int8_t)(r.len + n);
+    }
+    return r;
+}
+/* MatIEC's FIND, mismatch skips and all: FIND('Hello', 'lo') is 6 there, and so here */
+static inline int8_t plc__str_find(plc_string_t a, plc_string_t b) {
+    uint16_t i = 0, k = 0;
+    while (i + k < a.len && k < b.len) {
+        if (a.body[i + k] != b.body[k]) { i = (uint16_t)(i + k + 1); k = 0; }
+        else k++;
+    }
+    return (int8_t)(k == b.len - 1 ? 0 : i + 1);
+}
+static inline plc_string_t plc__str_fmt_s(int64_t v) {
+    plc_string_t r = plc__str_empty();
+    int n = snprintf((char *)r.body, PLC__STR_MAX, "%lld", (long long)v);
+    r.len = (int8_t)(n > PLC__STR_MAX ? PLC__STR_MAX : n);
+    return r;
+}
+static inline plc_string_t plc__str_fmt_u(uint64_t v) {
+    plc_string_t r = plc__str_empty();
+    int n = snprintf((char *)r.body, PLC__STR_MAX, "%llu", (unsigned long long)v);
+    r.len = (int8_t)(n > PLC__STR_MAX ? PLC__STR_MAX : n);
+    return r;
+}
+static inline plc_string_t plc__str_fmt_bits(uint64_t v) {
+    plc_string_t r = plc__str_empty();
+    int n = snprintf((char *)r.body, PLC__STR_MAX, "16#%llx", (unsigned long long)v);
+    r.len = (int8_t)(n > PLC__STR_MAX ? PLC__STR_MAX : n);
+    return r;
+}
+static inline plc_string_t plc__str_fmt_real(double v) {
+    plc_string_t r = plc__str_empty();
+    int n = snprintf((char *)r.body, PLC__STR_MAX, "%.10g", v);
+    r.len = (int8_t)(n > PLC__STR_MAX ? PLC__STR_MAX : n);
+    return r;
+}
+static inline plc_string_t plc__str_fmt_bool(int v) {
+    plc_string_t r = plc__str_empty();
+    memcpy(r.body, v ? "TRUE" : "FALSE", v ? 4 : 5);
+    r.len = (int8_t)(v ? 4 : 5);
+    return r;
+}
+/* TIME as MatIEC prints its (seconds, nanoseconds) pair: T#<d>d<h>h<m>m<s>s<ms>ms */
+static inline plc_string_t plc__str_fmt_time(int64_t ns) {
+    plc_string_t r = plc__str_empty();
+    int32_t sec = (int32_t)(ns / 1000000000LL), nsec = (int32_t)(ns % 1000000000LL);
+    int d = sec / 86400, dr = sec % 86400, h = dr / 3600, hr = dr % 3600, m = hr / 60, s = hr % 60;
+    char *b = (char *)r.body;
+    int n;
+    if (!dr && !nsec) n = snprintf(b, PLC__STR_MAX, "T#%dd", d);
+    else if (!hr && !nsec) n = snprintf(b, PLC__STR_MAX, "T#%dd%dh", d, h);
+    else if (!s && !nsec) n = snprintf(b, PLC__STR_MAX, "T#%dd%dh%dm", d, h, m);
+    else if (!nsec) n = snprintf(b, PLC__STR_MAX, "T#%dd%dh%dm%ds", d, h, m, s);
+    else n = snprintf(b, PLC__STR_MAX, "T#%dd%dh%dm%ds%gms", d, h, m, s, (double)nsec / 1000000);
+    r.len = (int8_t)(n > PLC__STR_MAX ? PLC__STR_MAX : n);
+    return r;
+}
+static inline int plc__str_to_bool(plc_string_t in) {
+    if (in.len == 1) return in.body[0] == '1';
+    if (in.len != 4) return 0;
+    for (int i = 0; i < 4; i++)
+        if (toupper(in.body[i]) != (unsigned char)"TRUE"[i]) return 0;
+    return 1;
+}
+/* MatIEC's reading of an integer: 2#, 8#, 16# prefixes, else decimal digits read from the
+ * right (at most 20), a character at or above '.' that is no digit restarting the number */
+static inline int64_t plc__str_to_int(plc_string_t in) {
+    int64_t r = 0;
+    unsigned shift = 0;
+    const uint8_t *s = in.body;
+    if (s[0] == '2' && s[1] == '#') {
+        for (int l = in.len - 1; l >= 2 && shift < 64; l--) {
+            char c = (char)s[l];
+            if (c >= '0' && c <= '1') { r |= (c - '0') << shift; shift += 1; }
+        }
+    } else if (s[0] == '8' && s[1] == '#') {
+        for (int l = in.len - 1; l >= 2 && shift < 64; l--) {
+            char c = (char)s[l];
+            if (c >= '0' && c <= '7') { r |= (c - '0') << shift; shift += 3; }
+        }
+    } else if (s[0] == '1' && s[1] == '6' && s[2] == '#') {
+        for (int l = in.len - 1; l >= 3 && shift < 64; l--) {
+            char c = (char)s[l];
+            if (c >= '0' && c <= '9') { r |= (int64_t)((uint64_t)(c - '0') << shift); shift += 4; }
+            else if (c >= 'a' && c <= 'f') { r |= (int64_t)((uint64_t)(c - 'a' + 10) << shift); shift += 4; }
+            else if (c >= 'A' && c <= 'F') { r |= (int64_t)((uint64_t)(c - 'A' + 10) << shift); shift += 4; }
+        }
+    } else {
+        int64_t fac = s[0] == '-' ? -1 : 1;
+        for (int l = in.len - 1; l >= 0 && shift < 20; l--) {
+            char c = (char)s[l];
+            if (c >= '0' && c <= '9') { r += (c - '0') * fac; fac *= 10; shift += 1; }
+            else if (c >= '.') { r = 0; fac = s[0] == '-' ? -1 : 1; shift = 0; }
+        }
+    }
+    return r;
+}
+/* the body up to its 126th byte as a C string, as atof reads it */
+static inline double plc__str_atof(plc_string_t in) {
+    char b[PLC__STR_MAX + 1];
+    memcpy(b, in.body, PLC__STR_MAX);
+    b[PLC__STR_MAX] = 0;
+    return atof(b);
+}
+static inline int plc__str_has_dot(plc_string_t in) {
+    int8_t l = in.len;
+    while (--l > 0 && in.body[l] != '.') {}
+    return l != 0;
+}
+static inline double plc__str_to_real(plc_string_t in) {
+    return plc__str_has_dot(in) ? plc__str_atof(in) : (double)plc__str_to_int(in);
+}
+/* MatIEC keeps whole seconds only (its fraction is multiplied after a cast to integer) */
+static inline int64_t plc__str_to_time(plc_string_t in) {
+    int32_t sec = plc__str_has_dot(in) ? (int32_t)(long)plc__str_atof(in)
+                                       : (int32_t)(long)plc__str_to_int(in);
+    return (int64_t)sec * 1000000000LL;
 }
 #endif
