@@ -103,7 +103,24 @@ def _line_starts(data: bytes) -> list[int]:
     return starts
 
 
+def strip_upload_lines(text: str) -> str:
+    """``text`` with the lines OpenPLC v3's upload takes out before MatIEC blanked: the
+    editor's C debugger trailer, ``(*DBG:...*)``, and ``(*FILE:path line*)``, each a whole line
+    (webserver/openplc.py, compile_program: `line.startswith('(*DBG:') and
+    line.endswith('*)')` on the text split at '\\n'). Their C would otherwise be read as a
+    comment that ends at the first ``*)`` of the C. Blanking keeps every line number."""
+    if "(*DBG:" not in text and "(*FILE:" not in text:
+        return text
+    lines = text.split("\n")
+    for i, line in enumerate(lines):
+        if line.startswith(("(*DBG:", "(*FILE:")) and line.endswith("*)") or (
+                line.startswith("(*FILE:c_blocks_code.cpp") and 'extern "C" void' in line):
+            lines[i] = ""
+    return "\n".join(lines)
+
+
 def parse_text(path: str, text: str, diags: Diagnostics) -> ParsedFile:
+    text = strip_upload_lines(text)
     masked, offsets = _mask_enum_literals(text)
     data = masked.encode("utf-8")
     tree = _parser().parse(data)
