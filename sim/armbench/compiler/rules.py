@@ -88,9 +88,14 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
             elif text.startswith("/*"):
                 diags.error(pf.pos(n), "E0102", "C-style /* */ comments are rejected by "
                             "MatIEC: use (* ... *)")
-            elif "(*" in text[2:]:
-                diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected by "
-                            "MatIEC: use flat comments")
+            elif text.startswith("(*") and "(*" in text[2:]:
+                if _matiec_comment_end(text) != len(text):
+                    diags.error(pf.pos(n), "E0102", "MatIEC reads the '(*' of '(*)' first, so "
+                                "'(*)' does not end this comment: write '( *)' or end it with "
+                                "' *)'")
+                elif _stray_closer_after(pf.data, n.end_byte):
+                    diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected "
+                                "by MatIEC: use flat comments")
         elif t == "pragma":
             descend = False
             diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
@@ -128,6 +133,30 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
         for m in rx.finditer(bytes(code)):
             diags.error(pf.pos_at_byte(m.start()), "E0104", f"real literal with {what}: "
                         "write 0.5 or 1.0 (MatIEC rejects .5 and 1.)")
+
+
+def _matiec_comment_end(text: str) -> int:
+    """Where MatIEC's lexer ends the comment ``text`` opens (past its ``*)``), or -1: it reads
+    comments flat, scanning ``(*`` and ``*)`` as tokens from the left, so an inner ``(*`` is
+    plain text (measured: ``(* see (* here *)`` builds) but the ``(*`` of ``(*)`` hides
+    its ``)``."""
+    i = 2
+    while i < len(text) - 1:
+        pair = text[i:i + 2]
+        if pair == "*)":
+            return i + 2
+        i += 2 if pair == "(*" else 1
+    return -1
+
+
+def _stray_closer_after(data: bytes, end: int) -> bool:
+    """Whether a ``*)`` follows ``end`` before any ``(*``: the closer of a comment nested in the
+    one that ends at ``end`` (MatIEC, reading flat, fails on it)."""
+    closer = data.find(b"*)", end)
+    if closer < 0:
+        return False
+    opener = data.find(b"(*", end, closer + 1)
+    return opener < 0
 
 
 def _snippet(pf: ParsedFile, node: Node, most: int = 40) -> str:
