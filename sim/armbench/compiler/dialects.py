@@ -46,6 +46,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_trunc_narrowing(prog, diags, target)
     check_element_out_arguments(prog, diags, target)
     check_configuration_names(prog, diags, target)
+    check_c_pragmas(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -185,6 +186,29 @@ def _through_index(e: A.Expr) -> bool:
             return True
         e = e.obj
     return False
+
+
+# ------------------------------------------------------------------ C in pragmas
+def check_c_pragmas(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """A {pragma} with C in a POU's body, which OpenPLC v3 builds (rules.py flags the forms
+    its build fails on), for the bench's soft PLC (build, run, serve, the pytest plugin): an
+    error. The bench's C keeps variables unlike MatIEC's, so it cannot paste the C in, and
+    skipping it would run a different program without a word: OSCAT's T_PLC_MS, which reads
+    the PLC time in such a pragma, would return 0 for ever and every timer built on it would
+    never expire. `check --target openplc` accepts it, for the real PLC."""
+    if target.upload:
+        return
+    flagged = {d.pos for d in diags.items if d.code == "E0103"}
+    for pou in prog.pous.values():
+        if pou.node is None:
+            continue
+        for pos in pou.node.c_pragmas:
+            if pos not in flagged:
+                diags.error(pos, "E0103", f"the bench's soft PLC cannot run the C in this "
+                            f"{{pragma}} of {pou.kind} {pou.name} (OpenPLC v3 pastes it into "
+                            f"its build; the bench would skip it and run another program): "
+                            f"write it in ST, or check it for the real PLC with "
+                            f"`armbench check --target openplc`")
 
 
 # ------------------------------------------------------------------ configuration names

@@ -11,7 +11,7 @@ import tree_sitter as ts
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .parse import ParsedFile
+from .parse import ParsedFile, pragma_has_code
 from .source import SourcePos
 
 _TIME_UNITS = {"D": 86_400_000_000_000, "H": 3_600_000_000_000, "M": 60_000_000_000,
@@ -261,7 +261,22 @@ class Lowerer:
         end = node.end_point
         end_pos = SourcePos(self.pf.path, end.row + 1, end.column + 1)
         return A.Pou(self.pos(node), kind, name, self.type_ref(rt) if rt else None, blocks, body,
-                     end_pos)
+                     end_pos, self.c_pragmas(node))
+
+    def c_pragmas(self, node: ts.Node) -> tuple[SourcePos, ...]:
+        """Where the POU's body has {pragmas} with C in them (rules.py says which fail)."""
+        if b"{" not in self.pf.data[node.start_byte:node.end_byte]:
+            return ()
+        found = []
+        stack = [node]
+        while stack:
+            n = stack.pop()
+            if n.type == "pragma":
+                if pragma_has_code(self.text(n)):
+                    found.append(self.pos(n))
+            elif n.type != "comment":
+                stack.extend(n.children)
+        return tuple(sorted(found, key=lambda p: (p.line, p.col)))
 
     def configuration(self, node: ts.Node) -> A.Configuration:
         name = self.text(self.field(node, "name"))

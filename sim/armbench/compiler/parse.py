@@ -103,6 +103,17 @@ def _line_starts(data: bytes) -> list[int]:
     return starts
 
 
+def pragma_code(text: str) -> str:
+    """The C of a pragma's text, its braces taken off."""
+    return text[1:-1] if text.startswith("{") and text.endswith("}") else text
+
+
+def pragma_has_code(text: str) -> bool:
+    """Whether a pragma holds C beyond comments and blanks (something a build would run)."""
+    code = re.sub(r"/\*.*?\*/|//[^\n]*", " ", pragma_code(text), flags=re.S)
+    return code.strip() != ""
+
+
 def strip_upload_lines(text: str) -> str:
     """``text`` with the lines OpenPLC v3's upload takes out before MatIEC blanked: the
     editor's C debugger trailer, ``(*DBG:...*)``, and ``(*FILE:path line*)``, each a whole line

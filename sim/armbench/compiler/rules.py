@@ -17,7 +17,7 @@ from tree_sitter import Node
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .parse import ParsedFile
+from .parse import ParsedFile, pragma_code
 from .reserved import matiec_reserves
 from .source import SourcePos
 from .symbols import CheckedProgram
@@ -73,11 +73,14 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
     cur = pf.tree.walk()
     above: list[str] = []  # types of the nodes above the cursor
     comment_spans: list[tuple[int, int]] = []
+    pous: list[Node] = []  # the POUs entered so far: a pragma's is the last one around it
     while True:
         n = cur.node
         assert n is not None
         t = n.type
         descend = True
+        if t in POU_NODES:
+            pous.append(n)
         if t == "comment":
             descend = False
             text = pf.text_of(n)
@@ -98,8 +101,11 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
                                 "by MatIEC: use flat comments")
         elif t == "pragma":
             descend = False
-            diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
-                        "fails on them: remove it")
+            comment_spans.append((n.start_byte, n.end_byte))  # C comments in it are C's
+            pou = next((p for p in reversed(pous) if p.end_byte > n.start_byte), None)
+            why = pragma_failure(pf, n, pou, above[-1] if above else "")
+            if why is not None:
+                diags.error(pf.pos(n), "E0103", why)
         elif t == "unary_expression":
             operand = n.child_by_field_name("operand")
             # once per chain, at its first operator: `- - - x` is one mistake, not two
@@ -133,6 +139,94 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
         for m in rx.finditer(bytes(code)):
             diags.error(pf.pos_at_byte(m.start()), "E0104", f"real literal with {what}: "
                         "write 0.5 or 1.0 (MatIEC rejects .5 and 1.)")
+
+
+# ------------------------------------------------------------------ pragmas
+# OpenPLC v3's build pastes the text of a {pragma} into the C that MatIEC generates, where it
+# stands (a POU's body, or the top of POUS.c). So a pragma builds exactly when its text is C
+# that compiles there. What the checker can tell fails, measured on OpenPLC v3's build:
+#   - a pragma inside a VAR block (MatIEC's grammar refuses it);
+#   - CODESYS-style pragmas, {attribute 'hide'}, {warning '...'}, {IF defined(...)}: not C;
+#   - in a FUNCTION_BLOCK or PROGRAM, C naming one of the POU's variables as a bare name (or
+#     data__->X): MatIEC keeps them in a data__ structure reached through its macros
+#     (__GET_VAR(data__->X,), __SET_VAR(data__->,X,,v)), which build;
+#   - in a FUNCTION, C naming a variable (or the result) other than in upper case: MatIEC's C
+#     declares them upper-cased locals (TX builds, tx fails).
+# Any other C (OSCAT's T_PLC_MS reading extern __tick and common_ticktime__, comments, an
+# empty pragma) builds, and the checker accepts it for OpenPLC: it cannot compile C itself.
+POU_NODES = frozenset({"function_declaration", "function_block_declaration",
+                       "program_declaration"})
+_POU_KIND = {"function_declaration": "FUNCTION", "function_block_declaration": "FUNCTION_BLOCK",
+             "program_declaration": "PROGRAM"}
+_VAR_BLOCKS = frozenset({"var_input", "var_output", "var_in_out", "var_temp", "var_external",
+                         "var_global", "global_var_declaration_block", "var_block"})
+_NOT_C = re.compile(r"""^\s*(?:\w+\s+['"]|(?:endregion|END_IF|ELSE)\s*$|(?:IF|ELSIF)\s+defined\b|"""
+                    r"(?:define|undefine)\s+\w+\s*$)")
+_C_TOKEN = re.compile(r'"(?:\\.|[^"\\])*"|\'(?:\\.|[^\'\\])*\'|/\*.*?\*/|//[^\n]*|'
+                      r"([A-Za-z_]\w*)|([()])", re.S)
+
+
+def _pou_variables(pf: ParsedFile, pou: Node) -> set[str]:
+    names: set[str] = set()
+    for block in pou.named_children:
+        if block.type not in _VAR_BLOCKS:
+            continue
+        for decl in block.named_children:
+            if decl.type != "variable_declaration":
+                continue
+            for c in decl.children:
+                if c.type == ":":
+                    break
+                if c.type == "identifier":
+                    names.add(pf.text_of(c).upper())
+    return names
+
+
+def pragma_failure(pf: ParsedFile, n: Node, pou: Node | None, context: str) -> str | None:
+    """Why OpenPLC v3's build fails on the pragma ``n`` (in ``pou``, inside a node of type
+    ``context``), or None when the checker cannot tell it fails."""
+    text = pf.text_of(n)
+    if context in _VAR_BLOCKS or context == "variable_declaration":
+        return ("a {pragma} inside a VAR block: MatIEC's grammar refuses it there (put it "
+                "between statements)")
+    code = pragma_code(text)
+    if _NOT_C.match(code):
+        return ("OpenPLC's build pastes a {pragma}'s text into the C it compiles, and "
+                f"'{_cut(text)}' is not C (a CODESYS-style pragma): remove it")
+    if pou is None:
+        return None
+    kind = _POU_KIND[pou.type]
+    variables = _pou_variables(pf, pou)
+    if kind == "FUNCTION":
+        name = pou.child_by_field_name("name")
+        if name is not None:
+            variables.add(pf.text_of(name).upper())
+    in_macro: list[bool] = []  # the open parentheses: True for a MatIEC macro's (__GET_VAR...)
+    prev = ""
+    for m in _C_TOKEN.finditer(code):
+        word, paren = m.group(1), m.group(2)
+        if paren == "(":
+            in_macro.append(prev.startswith("__"))
+        elif paren == ")":
+            if in_macro:
+                in_macro.pop()
+        elif word is not None and word.upper() in variables:
+            if kind == "FUNCTION" and word != word.upper():
+                return (f"the {{pragma}}'s C names '{word}': MatIEC's C spells a FUNCTION's "
+                        f"variables upper case, so OpenPLC's C build fails: write "
+                        f"{word.upper()}")
+            if kind != "FUNCTION" and not any(in_macro):
+                return (f"the {{pragma}}'s C names {kind} variable '{word}' directly: MatIEC's C "
+                        f"keeps them in the POU's data__ structure, so OpenPLC's C build fails "
+                        f"(use __GET_VAR(data__->{word.upper()},) and "
+                        f"__SET_VAR(data__->,{word.upper()},,value))")
+        prev = word or ""
+    return None
+
+
+def _cut(text: str, most: int = 30) -> str:
+    one = " ".join(text.split())
+    return one if len(one) <= most else one[:most] + "..."
 
 
 def _matiec_comment_end(text: str) -> int:
