@@ -29,7 +29,7 @@ from collections.abc import Iterator
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .reserved import codesys_family_reserves, matiec_reserves
+from .reserved import codesys_family_reserves, matiec_refuses_name
 from .rules import declared_names
 from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
@@ -63,7 +63,7 @@ def check_reserved_names(prog: CheckedProgram, diags: Diagnostics, target: Targe
                 diags.report(sev, n.pos, "E0215", f"{n.what} '{name}' has {form}: {who} it; "
                              "write one underscore between parts and none at the end")
             continue
-        if matiec_reserves(name):
+        if matiec_refuses_name(name, n.what):
             continue  # E0202, an error for every target
         why = codesys_family_reserves(name)
         if why is None or not (why.every_name or n.is_global):

@@ -18,7 +18,7 @@ from tree_sitter import Node
 from . import ast as A
 from .diagnostics import Diagnostics
 from .parse import ParsedFile, pragma_code
-from .reserved import matiec_reserves
+from .reserved import matiec_refuses_name
 from .source import SourcePos
 from .symbols import CheckedProgram
 
@@ -34,7 +34,8 @@ _C_MACRO_RE = re.compile(
     r"MAX_10_EXP|MIN_10_EXP|DECIMAL_DIG|HAS_SUBNORM)|SEEK_(SET|CUR|END)|PATH_MAX|NAME_MAX|"
     r"O_(RDONLY|WRONLY|RDWR|CREAT|EXCL|NOCTTY|TRUNC|APPEND|NONBLOCK|NDELAY|SYNC|DSYNC|RSYNC|"
     r"ASYNC|DIRECTORY|NOFOLLOW|CLOEXEC|DIRECT|LARGEFILE|NOATIME|PATH|TMPFILE|ACCMODE)|"
-    r"S_I[A-Z]+|TRUE|FALSE|BOOL|__\w+)$")
+    r"S_I(FMT|FDIR|FCHR|FBLK|FREG|FIFO|FLNK|FSOCK|SUID|SGID|SVTX|RWXU|RUSR|WUSR|XUSR|RWXG|"
+    r"RGRP|WGRP|XGRP|RWXO|ROTH|WOTH|XOTH|READ|WRITE|EXEC)|TRUE|FALSE|BOOL|__\w+)$")
 
 
 @cache
@@ -310,7 +311,7 @@ def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
     var_names = stdlib_variable_names()
     for n in declared_names(prog):
         up = n.name.upper()
-        if matiec_reserves(n.name):
+        if matiec_refuses_name(n.name, n.what):
             diags.error(n.pos, "E0202", f"{n.what} '{n.name}' is reserved in MatIEC (a "
                         "keyword, type or standard function/FB name): rename it")
         elif n.is_global and up in var_names:
@@ -319,3 +320,16 @@ def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
         elif is_c_macro(n.name):
             diags.error(n.pos, "E0204", f"{n.what} '{n.name}' becomes the C macro {up} in "
                         "OpenPLC's build: rename it")
+
+    # MatIEC binds a call to its standard function of that name, as the bench does: a named
+    # call then fails (the bench says which parameter is missing), a positional one runs the
+    # standard function, not the user's (measured)
+    for call, target in prog.calls.items():
+        callee = call.callee
+        if target.kind == "std" and isinstance(callee, A.Name):
+            user = prog.pous.get(callee.name.upper())
+            if user is not None and not user.builtin:
+                diags.warning(call.pos, "E0202", f"this call runs MatIEC's standard function "
+                              f"{callee.name.upper()}, not the {user.kind} {user.name} of the "
+                              "program (MatIEC binds the name to its own): rename the "
+                              f"{user.kind}")
