@@ -113,8 +113,9 @@ CODES: dict[str, tuple[str, str]] = {
               "positional"),
     "E0403": ("function call as a statement", "assign the result: r := F(x);"),
     "E0404": ("field access on a call result", "assign the result to a variable first"),
-    "E0405": ("array as FUNCTION VAR_INPUT", "pass it as VAR_IN_OUT, wrap it in a STRUCT, or "
-              "use a FUNCTION_BLOCK input: OpenPLC's C build fails on array inputs"),
+    "E0405": ("call of a FUNCTION with an array VAR_INPUT",
+              "pass it as VAR_IN_OUT, wrap it in a STRUCT, or use a FUNCTION_BLOCK input: "
+              "OpenPLC's C build fails on calls with array inputs"),
     "E0406": ("anonymous ARRAY return type", "declare a named type: TYPE Mat4 : ARRAY[..] OF "
               "REAL; END_TYPE"),
     "E0407": ("unknown parameter", "use a parameter the POU declares"),

@@ -21,6 +21,7 @@ from .parse import ParsedFile, pragma_code
 from .reserved import matiec_refuses_name
 from .source import SourcePos
 from .symbols import CheckedProgram
+from .types import ArrayType
 
 DATA = Path(__file__).parent / "data"
 
@@ -333,3 +334,18 @@ def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
                               f"{callee.name.upper()}, not the {user.kind} {user.name} of the "
                               "program (MatIEC binds the name to its own): rename the "
                               f"{user.kind}")
+
+
+def check_array_input_calls(prog: CheckedProgram, diags: Diagnostics) -> None:
+    """A call of a FUNCTION with an array VAR_INPUT: MatIEC's C for the call casts the array
+    to the element type and does not compile; the FUNCTION itself builds, uncalled (as in a
+    library), measured on OpenPLC v3's build."""
+    for call, target in prog.calls.items():
+        pou = target.pou
+        if target.kind != "function" or pou is None:
+            continue
+        arr = next((v for v in pou.vars.values()
+                    if v.kind == A.VAR_INPUT and isinstance(v.type, ArrayType)), None)
+        if arr is not None:
+            diags.error(call.pos, "E0405", f"call of FUNCTION {pou.name}, whose input "
+                        f"'{arr.name}' is an array: MatIEC's C for the call does not compile")
