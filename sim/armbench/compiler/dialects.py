@@ -47,6 +47,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_element_out_arguments(prog, diags, target)
     check_configuration_names(prog, diags, target)
     check_c_pragmas(prog, diags, target)
+    check_block_forms(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -186,6 +187,31 @@ def _through_index(e: A.Expr) -> bool:
             return True
         e = e.obj
     return False
+
+
+# ------------------------------------------------------------------ VAR block forms
+_NO_CONSTANT = frozenset({A.VAR_INPUT, A.VAR_OUTPUT, A.VAR_IN_OUT, A.VAR_TEMP})
+
+
+def check_block_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """VAR blocks MatIEC's grammar refuses and CODESYS and STruC++ take (measured on OpenPLC
+    v3's build): an empty block, and CONSTANT on VAR_INPUT, VAR_OUTPUT, VAR_IN_OUT, VAR_TEMP.
+    The bench's soft PLC runs both as the other dialects mean them: a warning there."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for unit in prog.units:
+        blocks = [b for pou in unit.pous for b in pou.blocks]
+        blocks += [b for cfg in unit.configs for b in cfg.globals]
+        blocks += [b for cfg in unit.configs for r in cfg.resources for b in r.globals]
+        for blk in blocks:
+            if not blk.decls:
+                diags.report(sev, blk.pos, "E0100", f"an empty {blk.kind} ... END_VAR block: "
+                             "MatIEC refuses it: declare a variable in it, or remove it")
+            if blk.constant and blk.kind in _NO_CONSTANT:
+                diags.report(sev, blk.pos, "E0100", f"{blk.kind} CONSTANT: MatIEC takes "
+                             "CONSTANT on VAR, VAR_GLOBAL and VAR_EXTERNAL blocks only: drop "
+                             "CONSTANT")
 
 
 # ------------------------------------------------------------------ C in pragmas
