@@ -195,12 +195,17 @@ _NO_CONSTANT = frozenset({A.VAR_INPUT, A.VAR_OUTPUT, A.VAR_IN_OUT, A.VAR_TEMP})
 
 def check_block_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
     """VAR blocks MatIEC's grammar refuses and CODESYS and STruC++ take (measured on OpenPLC
-    v3's build): an empty block, and CONSTANT on VAR_INPUT, VAR_OUTPUT, VAR_IN_OUT, VAR_TEMP.
+    v3's build): an empty block, and CONSTANT on VAR_INPUT, VAR_OUTPUT, VAR_IN_OUT, VAR_TEMP;
+    and an empty statement (`ELSE;`, `x := 1;;`).
     The bench's soft PLC runs both as the other dialects mean them: a warning there."""
     sev = target.upload_severity(_OPENPLC)
     if sev is None:
         return
     for unit in prog.units:
+        for pou in unit.pous:
+            for pos in pou.empty_statements:
+                diags.report(sev, pos, "E0100", "an empty statement (a lone ';'): MatIEC "
+                             "refuses it: remove the ';'")
         blocks = [b for pou in unit.pous for b in pou.blocks]
         blocks += [b for cfg in unit.configs for b in cfg.globals]
         blocks += [b for cfg in unit.configs for r in cfg.resources for b in r.globals]

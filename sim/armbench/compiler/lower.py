@@ -26,6 +26,12 @@ class _Unsupported(Exception):
         self.what = what
 
 
+# a ';' right after another, a comment, THEN, ELSE, DO, OF, REPEAT, a CASE label's ':' or at
+# a line's start: where a lone ';' can be (the syntax tree then says whether it is one)
+_MAYBE_EMPTY = re.compile(rb"(?:;|\*\)|\bTHEN|\bELSE|\bDO|\bOF|\bREPEAT|:)\s*;|^\s*;",
+                          re.I | re.M)
+
+
 def parse_int_literal(text: str) -> int:
     t = text.replace("_", "")
     sign = 1
@@ -261,7 +267,29 @@ class Lowerer:
         end = node.end_point
         end_pos = SourcePos(self.pf.path, end.row + 1, end.column + 1)
         return A.Pou(self.pos(node), kind, name, self.type_ref(rt) if rt else None, blocks, body,
-                     end_pos, self.c_pragmas(node))
+                     end_pos, self.c_pragmas(node), self.empty_statements(node))
+
+    _COMPOUND = frozenset({"if_statement", "case_statement", "for_statement", "while_statement",
+                           "repeat_statement"})
+
+    def empty_statements(self, node: ts.Node) -> tuple[SourcePos, ...]:
+        """Where the POU's body has a lone ';': not the one the grammar reads as an empty
+        statement after END_IF, END_CASE, END_FOR, END_WHILE or END_REPEAT."""
+        if not _MAYBE_EMPTY.search(self.pf.data, node.start_byte, node.end_byte):
+            return ()
+        found = []
+        stack = [node]
+        while stack:
+            n = stack.pop()
+            if n.type == "empty_statement":
+                prev = n.prev_sibling
+                while prev is not None and prev.type in ("comment", "pragma"):
+                    prev = prev.prev_sibling
+                if prev is None or prev.type not in self._COMPOUND:
+                    found.append(self.pos(n))
+            elif n.type not in ("comment", "pragma"):
+                stack.extend(n.children)
+        return tuple(sorted(found, key=lambda p: (p.line, p.col)))
 
     def c_pragmas(self, node: ts.Node) -> tuple[SourcePos, ...]:
         """Where the POU's body has {pragmas} with C in them (rules.py says which fail)."""
