@@ -203,6 +203,8 @@ def check_block_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) 
         return
     for unit in prog.units:
         for pou in unit.pous:
+            if pou.kind == "FUNCTION":
+                _check_constant_leak(pou, diags, sev)
             for pos in pou.empty_statements:
                 diags.report(sev, pos, "E0100", "an empty statement (a lone ';'): MatIEC "
                              "refuses it: remove the ';'")
@@ -217,6 +219,20 @@ def check_block_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) 
                 diags.report(sev, blk.pos, "E0100", f"{blk.kind} CONSTANT: MatIEC takes "
                              "CONSTANT on VAR, VAR_GLOBAL and VAR_EXTERNAL blocks only: drop "
                              "CONSTANT")
+
+
+def _check_constant_leak(pou: A.Pou, diags: Diagnostics, sev: str) -> None:
+    """In a FUNCTION, MatIEC makes a VAR block that follows a VAR CONSTANT block constant too:
+    assigning its variables fails ("Assignment to CONSTANT variables is not allowed"); the
+    same blocks in the other order, or in a FUNCTION_BLOCK, build (measured)."""
+    after_constant = False
+    for blk in pou.blocks:
+        if blk.kind == A.VAR and blk.constant:
+            after_constant = True
+        elif after_constant and blk.kind == A.VAR and blk.decls:
+            diags.report(sev, blk.pos, "E0100", f"a VAR block after VAR CONSTANT in FUNCTION "
+                         f"{pou.name}: MatIEC makes its variables constant too, and assigning "
+                         "them fails: declare the VAR CONSTANT block after it")
 
 
 # ------------------------------------------------------------------ C in pragmas

@@ -73,6 +73,7 @@ MATIEC_KEYWORDS = frozenset({
     "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT", "ANY", "ANY_NUM", "ANY_INT",
     "ANY_REAL", "ANY_BIT", "ANY_DERIVED", "ANY_ELEMENTARY", "ANY_MAGNITUDE", "ANY_DATE",
     "ANY_STRING", "REF", "REF_TO", "NULL", "POINTER", "METHOD", "INTERFACE", "EXTENDS",
+    "R_EDGE", "F_EDGE",  # edge qualifiers of VAR_INPUT declarations (measured: names fail)
 })
 
 
