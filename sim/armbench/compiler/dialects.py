@@ -48,6 +48,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_configuration_names(prog, diags, target)
     check_c_pragmas(prog, diags, target)
     check_block_forms(prog, diags, target)
+    check_case_on_bits(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -233,6 +234,24 @@ def _check_constant_leak(pou: A.Pou, diags: Diagnostics, sev: str) -> None:
             diags.report(sev, blk.pos, "E0100", f"a VAR block after VAR CONSTANT in FUNCTION "
                          f"{pou.name}: MatIEC makes its variables constant too, and assigning "
                          "them fails: declare the VAR CONSTANT block after it")
+
+
+def check_case_on_bits(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """CASE on a bit string (BYTE, WORD, DWORD, LWORD): MatIEC refuses it ("'CASE' quantity
+    not an integer or enumerated", measured); CODESYS takes it, and so does the soft PLC."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for sym in prog.pous.values():
+        if sym.node is None:
+            continue
+        for node in A.walk(sym.node.body):
+            if isinstance(node, A.Case):
+                st = prog.expr_types.get(node.subject)
+                if isinstance(st, ElemType) and st.kind == "bits":
+                    diags.report(sev, node.subject.pos, "E0303", f"CASE on a {st.name}: MatIEC "
+                                 "takes integer and enumerated selectors only: convert it "
+                                 f"({st.name}_TO_UINT)")
 
 
 # ------------------------------------------------------------------ C in pragmas
