@@ -252,6 +252,10 @@ class Pou(Node):
     blocks: list[VarBlock]
     body: list[Stmt]
     end_pos: SourcePos
+    # {pragmas} in the body holding C (OpenPLC v3 pastes it into its build; the bench cannot)
+    c_pragmas: tuple[SourcePos, ...] = ()
+    # lone ';' statements (not the ';' after END_IF, END_CASE...): MatIEC refuses them
+    empty_statements: tuple[SourcePos, ...] = ()
 
 
 @dataclass(eq=False)

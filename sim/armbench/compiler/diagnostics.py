@@ -19,7 +19,8 @@ CODES: dict[str, tuple[str, str]] = {
     "E0100": ("syntax error", "fix the ST syntax at the position shown"),
     "E0101": ("'//' line comment", "use (* ... *) comments: MatIEC rejects // comments"),
     "E0102": ("nested or C-style comment", "use flat (* ... *) comments"),
-    "E0103": ("pragma", "remove {pragmas}: OpenPLC's C build fails on them"),
+    "E0103": ("pragma OpenPLC's C build fails on, or C the soft PLC cannot run",
+              "remove the pragma, or write its C as MatIEC's C needs it (docs/matiec-facts.md)"),
     "E0104": ("real literal without digits on both sides of the point",
               "write 1.0, 0.5, 1.0E3"),
     "E0105": ("unsupported construct", "rewrite with the IEC 61131-3 subset MatIEC accepts"),
@@ -120,8 +121,9 @@ CODES: dict[str, tuple[str, str]] = {
               "positional"),
     "E0403": ("function call as a statement", "assign the result: r := F(x);"),
     "E0404": ("field access on a call result", "assign the result to a variable first"),
-    "E0405": ("array as FUNCTION VAR_INPUT", "pass it as VAR_IN_OUT, wrap it in a STRUCT, or "
-              "use a FUNCTION_BLOCK input: OpenPLC's C build fails on array inputs"),
+    "E0405": ("call of a FUNCTION with an array VAR_INPUT",
+              "pass it as VAR_IN_OUT, wrap it in a STRUCT, or use a FUNCTION_BLOCK input: "
+              "OpenPLC's C build fails on calls with array inputs"),
     "E0406": ("anonymous ARRAY return type", "declare a named type: TYPE Mat4 : ARRAY[..] OF "
               "REAL; END_TYPE"),
     "E0407": ("unknown parameter", "use a parameter the POU declares"),

@@ -29,7 +29,7 @@ from collections.abc import Iterator
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .reserved import codesys_family_reserves, matiec_reserves
+from .reserved import codesys_family_reserves, matiec_refuses_name
 from .rules import declared_names
 from .source import SourcePos
 from .strucpp import check_strucpp
@@ -48,6 +48,9 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_element_out_arguments(prog, diags, target)
     check_configuration_names(prog, diags, target)
     check_string_values(prog, diags, target)
+    check_c_pragmas(prog, diags, target)
+    check_block_forms(prog, diags, target)
+    check_case_on_bits(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -64,7 +67,7 @@ def check_reserved_names(prog: CheckedProgram, diags: Diagnostics, target: Targe
                 diags.report(sev, n.pos, "E0215", f"{n.what} '{name}' has {form}: {who} it; "
                              "write one underscore between parts and none at the end")
             continue
-        if matiec_reserves(name):
+        if matiec_refuses_name(name, n.what):
             continue  # E0202, an error for every target
         why = codesys_family_reserves(name)
         if why is None or not (why.every_name or n.is_global):
@@ -187,6 +190,93 @@ def _through_index(e: A.Expr) -> bool:
             return True
         e = e.obj
     return False
+
+
+# ------------------------------------------------------------------ VAR block forms
+_NO_CONSTANT = frozenset({A.VAR_INPUT, A.VAR_OUTPUT, A.VAR_IN_OUT, A.VAR_TEMP})
+
+
+def check_block_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """VAR blocks MatIEC's grammar refuses and CODESYS and STruC++ take (measured on OpenPLC
+    v3's build): an empty block, and CONSTANT on VAR_INPUT, VAR_OUTPUT, VAR_IN_OUT, VAR_TEMP;
+    and an empty statement (`ELSE;`, `x := 1;;`).
+    The bench's soft PLC runs both as the other dialects mean them: a warning there."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for unit in prog.units:
+        for pou in unit.pous:
+            if pou.kind == "FUNCTION":
+                _check_constant_leak(pou, diags, sev)
+            for pos in pou.empty_statements:
+                diags.report(sev, pos, "E0100", "an empty statement (a lone ';'): MatIEC "
+                             "refuses it: remove the ';'")
+        blocks = [b for pou in unit.pous for b in pou.blocks]
+        blocks += [b for cfg in unit.configs for b in cfg.globals]
+        blocks += [b for cfg in unit.configs for r in cfg.resources for b in r.globals]
+        for blk in blocks:
+            if not blk.decls:
+                diags.report(sev, blk.pos, "E0100", f"an empty {blk.kind} ... END_VAR block: "
+                             "MatIEC refuses it: declare a variable in it, or remove it")
+            if blk.constant and blk.kind in _NO_CONSTANT:
+                diags.report(sev, blk.pos, "E0100", f"{blk.kind} CONSTANT: MatIEC takes "
+                             "CONSTANT on VAR, VAR_GLOBAL and VAR_EXTERNAL blocks only: drop "
+                             "CONSTANT")
+
+
+def _check_constant_leak(pou: A.Pou, diags: Diagnostics, sev: str) -> None:
+    """In a FUNCTION, MatIEC makes a VAR block that follows a VAR CONSTANT block constant too:
+    assigning its variables fails ("Assignment to CONSTANT variables is not allowed"); the
+    same blocks in the other order, or in a FUNCTION_BLOCK, build (measured)."""
+    after_constant = False
+    for blk in pou.blocks:
+        if blk.kind == A.VAR and blk.constant:
+            after_constant = True
+        elif after_constant and blk.kind == A.VAR and blk.decls:
+            diags.report(sev, blk.pos, "E0100", f"a VAR block after VAR CONSTANT in FUNCTION "
+                         f"{pou.name}: MatIEC makes its variables constant too, and assigning "
+                         "them fails: declare the VAR CONSTANT block after it")
+
+
+def check_case_on_bits(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """CASE on a bit string (BYTE, WORD, DWORD, LWORD): MatIEC refuses it ("'CASE' quantity
+    not an integer or enumerated", measured); CODESYS takes it, and so does the soft PLC."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for sym in prog.pous.values():
+        if sym.node is None:
+            continue
+        for node in A.walk(sym.node.body):
+            if isinstance(node, A.Case):
+                st = prog.expr_types.get(node.subject)
+                if isinstance(st, ElemType) and st.kind == "bits":
+                    diags.report(sev, node.subject.pos, "E0303", f"CASE on a {st.name}: MatIEC "
+                                 "takes integer and enumerated selectors only: convert it "
+                                 f"({st.name}_TO_UINT)")
+
+
+# ------------------------------------------------------------------ C in pragmas
+def check_c_pragmas(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """A {pragma} with C in a POU's body, which OpenPLC v3 builds (rules.py flags the forms
+    its build fails on), for the bench's soft PLC (build, run, serve, the pytest plugin): an
+    error. The bench's C keeps variables unlike MatIEC's, so it cannot paste the C in, and
+    skipping it would run a different program without a word: OSCAT's T_PLC_MS, which reads
+    the PLC time in such a pragma, would return 0 for ever and every timer built on it would
+    never expire. `check --target openplc` accepts it, for the real PLC."""
+    if target.upload:
+        return
+    flagged = {d.pos for d in diags.items if d.code == "E0103"}
+    for pou in prog.pous.values():
+        if pou.node is None:
+            continue
+        for pos in pou.node.c_pragmas:
+            if pos not in flagged:
+                diags.error(pos, "E0103", f"the bench's soft PLC cannot run the C in this "
+                            f"{{pragma}} of {pou.kind} {pou.name} (OpenPLC v3 pastes it into "
+                            f"its build; the bench would skip it and run another program): "
+                            f"write it in ST, or check it for the real PLC with "
+                            f"`armbench check --target openplc`")
 
 
 # ------------------------------------------------------------------ configuration names

@@ -21,7 +21,7 @@ from .diagnostics import CompileFailed, Diagnostic, Diagnostics
 from .dialects import check_dialects
 from .emit_c import CUnit, emit
 from .resolve import check
-from .rules import check_names
+from .rules import check_array_input_calls, check_names
 from .symbols import CheckedProgram
 from .targets import ALL, SOFT_PLC, Target
 from .units import UnitCache, paused_gc
@@ -91,6 +91,7 @@ def _analyse_program(paths: Sequence[str | Path], library: Sequence[str | Path],
             units.append(use.prune(unit))
     prog = check(units, diags)
     check_names(prog, diags)
+    check_array_input_calls(prog, diags)
     check_dialects(prog, diags, target)
     if use.replaced:
         _explain_replacements(diags, use)

@@ -11,7 +11,7 @@ import tree_sitter as ts
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .parse import ParsedFile
+from .parse import ParsedFile, pragma_has_code
 from .source import SourcePos
 from .strings import StringLiteralError, string_literal
 
@@ -25,6 +25,12 @@ class _Unsupported(Exception):
         super().__init__(what)
         self.node = node
         self.what = what
+
+
+# a ';' right after another, a comment, THEN, ELSE, DO, OF, REPEAT, a CASE label's ':' or at
+# a line's start: where a lone ';' can be (the syntax tree then says whether it is one)
+_MAYBE_EMPTY = re.compile(rb"(?:;|\*\)|\bTHEN|\bELSE|\bDO|\bOF|\bREPEAT|:)\s*;|^\s*;",
+                          re.I | re.M)
 
 
 def parse_int_literal(text: str) -> int:
@@ -262,7 +268,44 @@ class Lowerer:
         end = node.end_point
         end_pos = SourcePos(self.pf.path, end.row + 1, end.column + 1)
         return A.Pou(self.pos(node), kind, name, self.type_ref(rt) if rt else None, blocks, body,
-                     end_pos)
+                     end_pos, self.c_pragmas(node), self.empty_statements(node))
+
+    _COMPOUND = frozenset({"if_statement", "case_statement", "for_statement", "while_statement",
+                           "repeat_statement"})
+
+    def empty_statements(self, node: ts.Node) -> tuple[SourcePos, ...]:
+        """Where the POU's body has a lone ';': not the one the grammar reads as an empty
+        statement after END_IF, END_CASE, END_FOR, END_WHILE or END_REPEAT."""
+        if not _MAYBE_EMPTY.search(self.pf.data, node.start_byte, node.end_byte):
+            return ()
+        found = []
+        stack = [node]
+        while stack:
+            n = stack.pop()
+            if n.type == "empty_statement":
+                prev = n.prev_sibling
+                while prev is not None and prev.type in ("comment", "pragma"):
+                    prev = prev.prev_sibling
+                if prev is None or prev.type not in self._COMPOUND:
+                    found.append(self.pos(n))
+            elif n.type not in ("comment", "pragma"):
+                stack.extend(n.children)
+        return tuple(sorted(found, key=lambda p: (p.line, p.col)))
+
+    def c_pragmas(self, node: ts.Node) -> tuple[SourcePos, ...]:
+        """Where the POU's body has {pragmas} with C in them (rules.py says which fail)."""
+        if b"{" not in self.pf.data[node.start_byte:node.end_byte]:
+            return ()
+        found = []
+        stack = [node]
+        while stack:
+            n = stack.pop()
+            if n.type == "pragma":
+                if pragma_has_code(self.text(n)):
+                    found.append(self.pos(n))
+            elif n.type != "comment":
+                stack.extend(n.children)
+        return tuple(sorted(found, key=lambda p: (p.line, p.col)))
 
     def configuration(self, node: ts.Node) -> A.Configuration:
         name = self.text(self.field(node, "name"))

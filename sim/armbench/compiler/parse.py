@@ -94,6 +94,26 @@ def _mask_enum_literals(text: str) -> tuple[str, frozenset[int]]:
     return "".join(chars), frozenset(offsets)
 
 
+# A duration literal with '_' between its parts or digits (T#1h_30m, t#5d_14h_12m_18s_3.5ms,
+# T#1_000ms): IEC 61131-3 allows them and MatIEC reads them; the grammar does not.
+_DURATION = re.compile(r"(?i)\b(?:T|TIME|LT|LTIME)#-?"
+                       r"(?:\d[\d_]*(?:\.\d[\d_]*)?(?:ms|us|ns|d|h|m|s)_?)+(?![\w.])")
+
+
+def _drop_duration_underscores(text: str) -> str:
+    """``text`` with the '_' of its duration literals moved behind them as blanks: the
+    literal reads as the grammar wants (T#1h30m), and no other position moves (ASCII only)."""
+    if "#" not in text or "_" not in text:
+        return text
+
+    def fix(m: re.Match[str]) -> str:
+        lit = m.group(0)
+        bare = lit.replace("_", "")
+        return bare + " " * (len(lit) - len(bare))
+
+    return _DURATION.sub(lambda m: fix(m) if "_" in m.group(0) else m.group(0), text)
+
+
 def _line_starts(data: bytes) -> list[int]:
     starts = [0]
     i = data.find(b"\n")
@@ -103,7 +123,35 @@ def _line_starts(data: bytes) -> list[int]:
     return starts
 
 
+def pragma_code(text: str) -> str:
+    """The C of a pragma's text, its braces taken off."""
+    return text[1:-1] if text.startswith("{") and text.endswith("}") else text
+
+
+def pragma_has_code(text: str) -> bool:
+    """Whether a pragma holds C beyond comments and blanks (something a build would run)."""
+    code = re.sub(r"/\*.*?\*/|//[^\n]*", " ", pragma_code(text), flags=re.S)
+    return code.strip() != ""
+
+
+def strip_upload_lines(text: str) -> str:
+    """``text`` with the lines OpenPLC v3's upload takes out before MatIEC blanked: the
+    editor's C debugger trailer, ``(*DBG:...*)``, and ``(*FILE:path line*)``, each a whole line
+    (webserver/openplc.py, compile_program: `line.startswith('(*DBG:') and
+    line.endswith('*)')` on the text split at '\\n'). Their C would otherwise be read as a
+    comment that ends at the first ``*)`` of the C. Blanking keeps every line number."""
+    if "(*DBG:" not in text and "(*FILE:" not in text:
+        return text
+    lines = text.split("\n")
+    for i, line in enumerate(lines):
+        if line.startswith(("(*DBG:", "(*FILE:")) and line.endswith("*)") or (
+                line.startswith("(*FILE:c_blocks_code.cpp") and 'extern "C" void' in line):
+            lines[i] = ""
+    return "\n".join(lines)
+
+
 def parse_text(path: str, text: str, diags: Diagnostics) -> ParsedFile:
+    text = _drop_duration_underscores(strip_upload_lines(text))
     masked, offsets = _mask_enum_literals(text)
     data = masked.encode("utf-8")
     tree = _parser().parse(data)

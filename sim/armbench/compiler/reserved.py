@@ -57,6 +57,8 @@ from .types import ELEMENTARY
 DATA = Path(__file__).parent / "data"
 
 # ------------------------------------------------------------------ MatIEC (OpenPLC v3)
+# SINGLE, a TASK parameter, is no keyword of MatIEC's: a variable, field, FB or FUNCTION named
+# so builds in OpenPLC v3 (measured).
 MATIEC_KEYWORDS = frozenset({
     "ACTION", "END_ACTION", "ARRAY", "OF", "AT", "CASE", "ELSE", "END_CASE", "CONFIGURATION",
     "END_CONFIGURATION", "CONSTANT", "DO", "BY", "EXIT", "CONTINUE", "FALSE", "TRUE", "FOR",
@@ -64,13 +66,14 @@ MATIEC_KEYWORDS = frozenset({
     "END_FUNCTION_BLOCK", "IF", "THEN", "ELSIF", "END_IF", "INITIAL_STEP", "INTERVAL",
     "NON_RETAIN", "NOT", "AND", "OR", "XOR", "MOD", "ON", "PRIORITY", "PROGRAM", "END_PROGRAM",
     "READ_ONLY", "READ_WRITE", "REPEAT", "UNTIL", "END_REPEAT", "RESOURCE", "END_RESOURCE",
-    "RETAIN", "RETURN", "SINGLE", "STEP", "END_STEP", "STRUCT", "END_STRUCT", "TASK",
+    "RETAIN", "RETURN", "STEP", "END_STEP", "STRUCT", "END_STRUCT", "TASK",
     "TRANSITION", "END_TRANSITION", "TYPE", "END_TYPE", "VAR", "END_VAR", "VAR_INPUT",
     "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_EXTERNAL", "VAR_GLOBAL", "VAR_ACCESS",
     "VAR_CONFIG", "WHILE", "END_WHILE", "WITH", "EN", "ENO", "STRING", "WSTRING", "TIME",
     "DATE", "TIME_OF_DAY", "TOD", "DATE_AND_TIME", "DT", "ANY", "ANY_NUM", "ANY_INT",
     "ANY_REAL", "ANY_BIT", "ANY_DERIVED", "ANY_ELEMENTARY", "ANY_MAGNITUDE", "ANY_DATE",
     "ANY_STRING", "REF", "REF_TO", "NULL", "POINTER", "METHOD", "INTERFACE", "EXTENDS",
+    "R_EDGE", "F_EDGE",  # edge qualifiers of VAR_INPUT declarations (measured: names fail)
 })
 
 
@@ -84,6 +87,17 @@ def matiec_pou_names() -> frozenset[str]:
 def matiec_reserves(name: str) -> bool:
     up = name.upper()
     return up in MATIEC_KEYWORDS or up in ELEMENTARY or up in matiec_pou_names()
+
+
+def matiec_refuses_name(name: str, what: str) -> bool:
+    """Whether MatIEC refuses ``name`` declared as ``what`` (rules.DeclaredName.what), measured
+    on OpenPLC v3's build: keywords and elementary types as any name; its standard library's
+    POU names (MAX, SEL, MIN_TIME, TON...) as any name but a STRUCT field (builds) or a
+    FUNCTION's name (builds; a call of that FUNCTION does not: rules.check_names)."""
+    up = name.upper()
+    if up in MATIEC_KEYWORDS or up in ELEMENTARY:
+        return True
+    return up in matiec_pou_names() and what not in ("field", "function")
 
 
 # ------------------------------------------------------------------ IEC 3rd ed. / CODESYS family

@@ -195,10 +195,6 @@ class Declarations:
                     self.check_location(decl, t)
                 if blk.kind == A.VAR_IN_OUT and decl.init is not None:
                     self.d.error(decl.pos, "E0300", "a VAR_IN_OUT cannot have an initial value")
-                if node.kind == "FUNCTION" and blk.kind == A.VAR_INPUT and \
-                        isinstance(t, ArrayType):
-                    self.d.error(decl.pos, "E0405", f"array input '{decl.name}' of FUNCTION "
-                                 f"{p.name}: MatIEC's C for it does not compile")
                 p.vars[key] = VarSym(decl.name, t, blk.kind, blk.constant, decl.pos, decl.init,
                                      decl.address)
 

@@ -17,10 +17,11 @@ from tree_sitter import Node
 
 from . import ast as A
 from .diagnostics import Diagnostics
-from .parse import ParsedFile
-from .reserved import matiec_reserves
+from .parse import ParsedFile, pragma_code
+from .reserved import matiec_refuses_name
 from .source import SourcePos
 from .symbols import CheckedProgram
+from .types import ArrayType
 
 DATA = Path(__file__).parent / "data"
 
@@ -34,7 +35,8 @@ _C_MACRO_RE = re.compile(
     r"MAX_10_EXP|MIN_10_EXP|DECIMAL_DIG|HAS_SUBNORM)|SEEK_(SET|CUR|END)|PATH_MAX|NAME_MAX|"
     r"O_(RDONLY|WRONLY|RDWR|CREAT|EXCL|NOCTTY|TRUNC|APPEND|NONBLOCK|NDELAY|SYNC|DSYNC|RSYNC|"
     r"ASYNC|DIRECTORY|NOFOLLOW|CLOEXEC|DIRECT|LARGEFILE|NOATIME|PATH|TMPFILE|ACCMODE)|"
-    r"S_I[A-Z]+|TRUE|FALSE|BOOL|__\w+)$")
+    r"S_I(FMT|FDIR|FCHR|FBLK|FREG|FIFO|FLNK|FSOCK|SUID|SGID|SVTX|RWXU|RUSR|WUSR|XUSR|RWXG|"
+    r"RGRP|WGRP|XGRP|RWXO|ROTH|WOTH|XOTH|READ|WRITE|EXEC)|TRUE|FALSE|BOOL|__\w+)$")
 
 
 @cache
@@ -73,11 +75,14 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
     cur = pf.tree.walk()
     above: list[str] = []  # types of the nodes above the cursor
     comment_spans: list[tuple[int, int]] = []
+    pous: list[Node] = []  # the POUs entered so far: a pragma's is the last one around it
     while True:
         n = cur.node
         assert n is not None
         t = n.type
         descend = True
+        if t in POU_NODES:
+            pous.append(n)
         if t == "comment":
             descend = False
             text = pf.text_of(n)
@@ -88,13 +93,21 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
             elif text.startswith("/*"):
                 diags.error(pf.pos(n), "E0102", "C-style /* */ comments are rejected by "
                             "MatIEC: use (* ... *)")
-            elif "(*" in text[2:]:
-                diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected by "
-                            "MatIEC: use flat comments")
+            elif text.startswith("(*") and "(*" in text[2:]:
+                if _matiec_comment_end(text) != len(text):
+                    diags.error(pf.pos(n), "E0102", "MatIEC reads the '(*' of '(*)' first, so "
+                                "'(*)' does not end this comment: write '( *)' or end it with "
+                                "' *)'")
+                elif _stray_closer_after(pf.data, n.end_byte):
+                    diags.error(pf.pos(n), "E0102", "nested (* (* *) *) comments are rejected "
+                                "by MatIEC: use flat comments")
         elif t == "pragma":
             descend = False
-            diags.error(pf.pos(n), "E0103", "{pragmas} pass MatIEC but OpenPLC's C build "
-                        "fails on them: remove it")
+            comment_spans.append((n.start_byte, n.end_byte))  # C comments in it are C's
+            pou = next((p for p in reversed(pous) if p.end_byte > n.start_byte), None)
+            why = pragma_failure(pf, n, pou, above[-1] if above else "")
+            if why is not None:
+                diags.error(pf.pos(n), "E0103", why)
         elif t == "unary_expression":
             operand = n.child_by_field_name("operand")
             # once per chain, at its first operator: `- - - x` is one mistake, not two
@@ -128,6 +141,118 @@ def check_rules(pf: ParsedFile, diags: Diagnostics) -> None:
         for m in rx.finditer(bytes(code)):
             diags.error(pf.pos_at_byte(m.start()), "E0104", f"real literal with {what}: "
                         "write 0.5 or 1.0 (MatIEC rejects .5 and 1.)")
+
+
+# ------------------------------------------------------------------ pragmas
+# OpenPLC v3's build pastes the text of a {pragma} into the C that MatIEC generates, where it
+# stands (a POU's body, or the top of POUS.c). So a pragma builds exactly when its text is C
+# that compiles there. What the checker can tell fails, measured on OpenPLC v3's build:
+#   - a pragma inside a VAR block (MatIEC's grammar refuses it);
+#   - CODESYS-style pragmas, {attribute 'hide'}, {warning '...'}, {IF defined(...)}: not C;
+#   - in a FUNCTION_BLOCK or PROGRAM, C naming one of the POU's variables as a bare name (or
+#     data__->X): MatIEC keeps them in a data__ structure reached through its macros
+#     (__GET_VAR(data__->X,), __SET_VAR(data__->,X,,v)), which build;
+#   - in a FUNCTION, C naming a variable (or the result) other than in upper case: MatIEC's C
+#     declares them upper-cased locals (TX builds, tx fails).
+# Any other C (OSCAT's T_PLC_MS reading extern __tick and common_ticktime__, comments, an
+# empty pragma) builds, and the checker accepts it for OpenPLC: it cannot compile C itself.
+POU_NODES = frozenset({"function_declaration", "function_block_declaration",
+                       "program_declaration"})
+_POU_KIND = {"function_declaration": "FUNCTION", "function_block_declaration": "FUNCTION_BLOCK",
+             "program_declaration": "PROGRAM"}
+_VAR_BLOCKS = frozenset({"var_input", "var_output", "var_in_out", "var_temp", "var_external",
+                         "var_global", "global_var_declaration_block", "var_block"})
+_NOT_C = re.compile(r"""^\s*(?:\w+\s+['"]|(?:endregion|END_IF|ELSE)\s*$|(?:IF|ELSIF)\s+defined\b|"""
+                    r"(?:define|undefine)\s+\w+\s*$)")
+_C_TOKEN = re.compile(r'"(?:\\.|[^"\\])*"|\'(?:\\.|[^\'\\])*\'|/\*.*?\*/|//[^\n]*|'
+                      r"([A-Za-z_]\w*)|([()])", re.S)
+
+
+def _pou_variables(pf: ParsedFile, pou: Node) -> set[str]:
+    names: set[str] = set()
+    for block in pou.named_children:
+        if block.type not in _VAR_BLOCKS:
+            continue
+        for decl in block.named_children:
+            if decl.type != "variable_declaration":
+                continue
+            for c in decl.children:
+                if c.type == ":":
+                    break
+                if c.type == "identifier":
+                    names.add(pf.text_of(c).upper())
+    return names
+
+
+def pragma_failure(pf: ParsedFile, n: Node, pou: Node | None, context: str) -> str | None:
+    """Why OpenPLC v3's build fails on the pragma ``n`` (in ``pou``, inside a node of type
+    ``context``), or None when the checker cannot tell it fails."""
+    text = pf.text_of(n)
+    if context in _VAR_BLOCKS or context == "variable_declaration":
+        return ("a {pragma} inside a VAR block: MatIEC's grammar refuses it there (put it "
+                "between statements)")
+    code = pragma_code(text)
+    if _NOT_C.match(code):
+        return ("OpenPLC's build pastes a {pragma}'s text into the C it compiles, and "
+                f"'{_cut(text)}' is not C (a CODESYS-style pragma): remove it")
+    if pou is None:
+        return None
+    kind = _POU_KIND[pou.type]
+    variables = _pou_variables(pf, pou)
+    if kind == "FUNCTION":
+        name = pou.child_by_field_name("name")
+        if name is not None:
+            variables.add(pf.text_of(name).upper())
+    in_macro: list[bool] = []  # the open parentheses: True for a MatIEC macro's (__GET_VAR...)
+    prev = ""
+    for m in _C_TOKEN.finditer(code):
+        word, paren = m.group(1), m.group(2)
+        if paren == "(":
+            in_macro.append(prev.startswith("__"))
+        elif paren == ")":
+            if in_macro:
+                in_macro.pop()
+        elif word is not None and word.upper() in variables:
+            if kind == "FUNCTION" and word != word.upper():
+                return (f"the {{pragma}}'s C names '{word}': MatIEC's C spells a FUNCTION's "
+                        f"variables upper case, so OpenPLC's C build fails: write "
+                        f"{word.upper()}")
+            if kind != "FUNCTION" and not any(in_macro):
+                return (f"the {{pragma}}'s C names {kind} variable '{word}' directly: MatIEC's C "
+                        f"keeps them in the POU's data__ structure, so OpenPLC's C build fails "
+                        f"(use __GET_VAR(data__->{word.upper()},) and "
+                        f"__SET_VAR(data__->,{word.upper()},,value))")
+        prev = word or ""
+    return None
+
+
+def _cut(text: str, most: int = 30) -> str:
+    one = " ".join(text.split())
+    return one if len(one) <= most else one[:most] + "..."
+
+
+def _matiec_comment_end(text: str) -> int:
+    """Where MatIEC's lexer ends the comment ``text`` opens (past its ``*)``), or -1: it reads
+    comments flat, scanning ``(*`` and ``*)`` as tokens from the left, so an inner ``(*`` is
+    plain text (measured: ``(* see (* here *)`` builds) but the ``(*`` of ``(*)`` hides
+    its ``)``."""
+    i = 2
+    while i < len(text) - 1:
+        pair = text[i:i + 2]
+        if pair == "*)":
+            return i + 2
+        i += 2 if pair == "(*" else 1
+    return -1
+
+
+def _stray_closer_after(data: bytes, end: int) -> bool:
+    """Whether a ``*)`` follows ``end`` before any ``(*``: the closer of a comment nested in the
+    one that ends at ``end`` (MatIEC, reading flat, fails on it)."""
+    closer = data.find(b"*)", end)
+    if closer < 0:
+        return False
+    opener = data.find(b"(*", end, closer + 1)
+    return opener < 0
 
 
 def _snippet(pf: ParsedFile, node: Node, most: int = 40) -> str:
@@ -187,7 +312,7 @@ def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
     var_names = stdlib_variable_names()
     for n in declared_names(prog):
         up = n.name.upper()
-        if matiec_reserves(n.name):
+        if matiec_refuses_name(n.name, n.what):
             diags.error(n.pos, "E0202", f"{n.what} '{n.name}' is reserved in MatIEC (a "
                         "keyword, type or standard function/FB name): rename it")
         elif n.is_global and up in var_names:
@@ -196,3 +321,31 @@ def check_names(prog: CheckedProgram, diags: Diagnostics) -> None:
         elif is_c_macro(n.name):
             diags.error(n.pos, "E0204", f"{n.what} '{n.name}' becomes the C macro {up} in "
                         "OpenPLC's build: rename it")
+
+    # MatIEC binds a call to its standard function of that name, as the bench does: a named
+    # call then fails (the bench says which parameter is missing), a positional one runs the
+    # standard function, not the user's (measured)
+    for call, target in prog.calls.items():
+        callee = call.callee
+        if target.kind == "std" and isinstance(callee, A.Name):
+            user = prog.pous.get(callee.name.upper())
+            if user is not None and not user.builtin:
+                diags.warning(call.pos, "E0202", f"this call runs MatIEC's standard function "
+                              f"{callee.name.upper()}, not the {user.kind} {user.name} of the "
+                              "program (MatIEC binds the name to its own): rename the "
+                              f"{user.kind}")
+
+
+def check_array_input_calls(prog: CheckedProgram, diags: Diagnostics) -> None:
+    """A call of a FUNCTION with an array VAR_INPUT: MatIEC's C for the call casts the array
+    to the element type and does not compile; the FUNCTION itself builds, uncalled (as in a
+    library), measured on OpenPLC v3's build."""
+    for call, target in prog.calls.items():
+        pou = target.pou
+        if target.kind != "function" or pou is None:
+            continue
+        arr = next((v for v in pou.vars.values()
+                    if v.kind == A.VAR_INPUT and isinstance(v.type, ArrayType)), None)
+        if arr is not None:
+            diags.error(call.pos, "E0405", f"call of FUNCTION {pou.name}, whose input "
+                        f"'{arr.name}' is an array: MatIEC's C for the call does not compile")

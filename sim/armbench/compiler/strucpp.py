@@ -42,7 +42,7 @@ from typing import Any
 from . import ast as A
 from .cxxtypes import CxxType, call_arguments, cxx_type, iec_base, strucpp_literal_value
 from .diagnostics import Diagnostics
-from .reserved import matiec_reserves, strucpp_reserves
+from .reserved import matiec_refuses_name, strucpp_reserves
 from .rules import declared_names, is_c_macro
 from .symbols import CheckedProgram
 from .targets import OPENPLC, OPENPLC_V4, Target
@@ -241,7 +241,7 @@ _NAMESPACE_SCOPE = frozenset({"type", "function", "function block", "global"})
 
 def check_names(prog: CheckedProgram, rep: _Reporter) -> None:
     for n in declared_names(prog):
-        if matiec_reserves(n.name) or is_c_macro(n.name):
+        if matiec_refuses_name(n.name, n.what) or is_c_macro(n.name):
             continue  # E0202, E0204: errors for every target
         why = strucpp_reserves(n.name, n.what in _NAMESPACE_SCOPE)
         if why is not None:
