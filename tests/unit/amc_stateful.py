@@ -231,7 +231,8 @@ def report(fig: Figures) -> str:
     lines = [f"scans {fig.scans}, block calls checked {fig.calls}, "
              f"rule checks {sum(fig.checks.values())}"]
     lines += [f"  {n:>8}  {r}" for r, n in sorted(fig.checks.items())]
-    lines.append("transitions seen: " + ", ".join(f"{k} {v}" for k, v in
+    lines.append("state changes between scans: " + ", ".join(f"{k} {v}" for k, v in
                                                 sorted(fig.transitions.items())))
-    lines.append("results seen: " + ", ".join(f"{k} {v}" for k, v in sorted(fig.results.items())))
+    lines.append("block-scans showing a result: "
+                 + ", ".join(f"{k} {v}" for k, v in sorted(fig.results.items())))
     return "\n".join(lines)

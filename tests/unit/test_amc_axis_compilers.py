@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 from matiec_run import SKIP_REASON as MATIEC_SKIP
 from matiec_run import run_tool
+
 from strucpp_tool import SKIP_REASON as STRUCPP_SKIP
 from strucpp_tool import V4_CXX_FLAGS, find_strucpp
 
@@ -22,7 +23,8 @@ REPO = Path(__file__).resolve().parents[2]
 ST = REPO / "st"
 SCANS = 260
 # the layer and what it uses, in dependency order
-FILES = ["ArmAngles.st", "Kinematics.st", "MG996R.st", "MotionJerkTypes.st", "MotionJerkRoots.st", "MotionJerkProfile.st",
+FILES = ["ArmAngles.st", "Kinematics.st", "MG996R.st", "MotionJerkTypes.st",
+         "MotionJerkRoots.st", "MotionJerkProfile.st",
          "MotionJerkStep1.st", "MotionJerkStep2.st", "MotionJerkVelocity.st",
          "MotionJerkSync.st", "MotionJerkOnline.st", "AMCTypes.st", "AMCAxisDrive.st",
          "AMCAxisMove.st", "AMCAxisAdmin.st"]
