@@ -19,9 +19,12 @@ from pathlib import Path
 import pytest
 from matiec_run import SKIP_REASON, first_scan_both, run_tool
 
-# inputs with no short binary form, a few large (where one float rounding step is big) and
-# one that is exactly REAL 0.1 (above the double 0.1: `x > 0.1` is TRUE only in double)
-INPUTS = ["0.1", "1.7", "3.3", "12.345", "40000.0", "0.007", "123.456", "7.77", "-2.5"]
+# inputs with no short binary form, a few large (where one float rounding step is big), one
+# that is exactly REAL 0.1 (above the double 0.1: `x > 0.1` is TRUE only in double),
+# 3.33333325 (times 0.3: 0.99999998 in double, 1.0 once rounded to REAL, so TRUNC gives 1)
+# and 1.00067592, whose cube powf rounds otherwise than the double pow
+INPUTS = ["0.1", "1.7", "3.3", "12.345", "40000.0", "0.007", "123.456", "7.77", "-2.5",
+          "3.33333325", "1.00067592"]
 
 FUNCTIONS = """
 FUNCTION StirlingGamma : REAL
@@ -105,6 +108,8 @@ def _program() -> tuple[str, dict[str, str]]:
         out(f"Sel{i}", "REAL", f"SEL({x} > 5.0, {x} * 0.1, {x} * 0.2) * 0.3")
         out(f"Mov{i}", "REAL", f"MOVE({x} * 0.1) * 0.3")
         out(f"Ex3{i}", "REAL", f"EXPT({x} * 0.7, 3) + 0.1")
+        out(f"Exd{i}", "REAL", f"EXPT({x}, 3)")
+        out(f"Exf{i}", "REAL", f"EXPT({x}, 3.0)")
         out(f"Exh{i}", "REAL", f"EXPT(ABS({x}) * 0.7, 0.5) + 0.1")
         out(f"Usr{i}", "REAL", f"Scale({x} * 0.3) * 0.9")
         out(f"Cst{i}", "REAL", f"K * {x} + Z")
