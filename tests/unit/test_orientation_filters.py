@@ -11,11 +11,15 @@
   (q_G = q (x) q(axis, dphi), q_A from ahrs's TRIAD, q = F q_G + (1-F) q_A). ahrs's own
   Complementary class blends Euler angles, not quaternions, so it is not the seed's filter.
 
-Agreement tolerance with ahrs: 2e-6 per quaternion component over 6,001 chained samples. The
+Agreement tolerance with ahrs: 3e-6 per quaternion component over 6,001 chained samples. The
 ST computes in REAL (float32, unit roundoff 6e-8), ahrs in float64; one update is about 100
 float32 operations on numbers of order 1, so it differs by a few 1e-7, and the filter's
 correction pulls the two chains together instead of letting the differences add up (the
-measured worst case is printed; run with -s).
+measured worst case is printed; run with -s). Measured worst 2.5e-6 (IMU, beta 0.033): the
+update's expressions with literals (`2.0 * (Q.X * Q.Z - Q.W * Q.Y) - Ax`) are computed in
+double and rounded once, as MatIEC's C computes them (test_madgwick_matiec.py: bit for bit
+with OpenPLC's build over 6,000 samples); REAL at every step, as the bench once did, stayed
+within 1.3e-6 of ahrs on these samples but is not what the PLC computes.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from armbench.plant.imu import HandTrajectory, ImuModel, angle_between_deg, simu
 ahrs_filters = pytest.importorskip("ahrs.filters")
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
 
-AGREEMENT_TOL = 2.0e-6
+AGREEMENT_TOL = 3.0e-6
 DURATION_S = 60.0
 RATE_HZ = 100.0
 

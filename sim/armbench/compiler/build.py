@@ -33,8 +33,11 @@ RUNTIME_DIR = Path(__file__).parent / "runtime"
 # registers, moving them to and from the FPU's at every use; the jerk-limited planner plans
 # 6 joints 10-15 % faster with it (bench/jerk_timing.py), for about 3 % more gcc CPU time on
 # st/. clang ignores it (and -finline-small-functions), with a warning.
-CFLAGS = ["-Og", "-finline-small-functions", "-fcaller-saves", "-fPIC", "-shared", "-fwrapv",
-          "-fno-strict-aliasing", "-std=gnu11", "-w"]
+# -ffp-contract=off: OpenPLC v3 compiles MatIEC's C with g++ at -O0, which fuses no
+# multiply-add; gcc at -O2 on aarch64 (and clang by default) would fuse `x * y + z` into one
+# rounding. No code change on x86-64 (no FMA without -mfma).
+CFLAGS = ["-Og", "-finline-small-functions", "-fcaller-saves", "-ffp-contract=off", "-fPIC",
+          "-shared", "-fwrapv", "-fno-strict-aliasing", "-std=gnu11", "-w"]
 # POU code per translation unit below which another compiler process costs more (its start,
 # the shared declarations parsed again) than it saves
 MIN_UNIT_BYTES = 64_000

@@ -26,6 +26,7 @@ from .types import (
     BOOL,
     DINT,
     ELEMENTARY,
+    REAL,
     STRING,
     ArrayType,
     ElemType,
@@ -1247,9 +1248,14 @@ class Emitter:
             return f"((int64_t){n}LL)"
         if isinstance(t, ElemType) and t.is_real:
             f = -float(v) if negate else float(v)
-            if t.bits == 32:
+            if t.bits == 32 and e.type_prefix is not None:
+                # REAL#1.5 is MatIEC's __REAL_LITERAL(1.5), (REAL)1.5: a float
                 f32 = struct.unpack("f", struct.pack("f", f))[0]
                 return f"({f32.hex()}f)"
+            # MatIEC writes an untyped literal's text into its C as it is, a double even in a
+            # REAL expression: C's promotions then compute `x * 0.1` (x REAL) in double, and
+            # the value is rounded to float only where it lands in a REAL (an assignment, an
+            # argument, a conversion's input), never between the operators
             return f"({f.hex()})"
         n = -int(v) if negate else int(v)
         if isinstance(t, ElemType):
@@ -1283,7 +1289,9 @@ class Emitter:
             acc = self.binary_node(b, bt, acc, self.expr(b.right, want=operand_t))
             if (i + 1) % SPILL_EVERY == 0 and b is not e and isinstance(bt, ElemType):
                 tmp = self.loc.tmp()
-                spills.append(f"{bt.ctype} {tmp} = {acc};")
+                # __auto_type: the operator's C type, double where a REAL literal made it so
+                # (a float here would round where MatIEC's C does not)
+                spills.append(f"__auto_type {tmp} = {acc};")
                 acc = tmp
         return "({ " + " ".join(spills) + f" {acc}; }})" if spills else acc
 
@@ -1331,6 +1339,10 @@ class Emitter:
         return f"(({ct})({a} {op} {b}))"
 
     def conversion(self, a: str, src: ElemType, dst: ElemType) -> str:
+        if src is REAL:
+            # MatIEC passes the input as (REAL)(...): rounded to float first, whatever a
+            # REAL literal in it made C compute in double
+            a = f"((float){a})"
         if dst is STRING:
             # MatIEC's *_TO_STRING: snprintf formats, REAL through double with %.10g
             if src.kind == "bool":
@@ -1385,6 +1397,8 @@ class Emitter:
         if name == "TRUNC":
             at = self.p.expr_types[args[0]]
             x = self.expr(args[0], want=at)
+            if at is REAL:
+                x = f"((float){x})"
             assert isinstance(t, ElemType)
             return f"(({t.ctype})(int64_t)({x}))"
         if name == "EXPT":
@@ -1392,13 +1406,18 @@ class Emitter:
             bt = self.p.expr_types[args[1]]
             x = self.expr(args[0], want=t)
             y = self.expr(args[1], want=bt)
+            if t is REAL and bt is not REAL:
+                # MatIEC's C++ pow(float, <integer or double>) is the double pow (C++11's
+                # std::pow promotes), rounded to REAL on return; pow(float, float) is powf
+                return f"((float)pow((float){x}, (double){y}))"
             return f"pow{'f' if t.bits == 32 else ''}({x}, ({t.ctype}){y})"
         if f.kind.startswith("str_"):
             return self.string_call(c, name, args, t)
         assert isinstance(t, ElemType)
         ct = t.ctype
         if name == "MOVE":
-            return self.expr(args[0], want=t)
+            return f"((float){self.expr(args[0], want=t)})" if t is REAL else \
+                self.expr(args[0], want=t)
         if name == "ABS":
             if t.is_real:
                 return f"fabs{'f' if t.bits == 32 else ''}({self.expr(args[0], want=t)})"
