@@ -1228,12 +1228,39 @@ class Emitter:
             return self.fn_call(e)
         if tgt.kind == "alias":
             assert tgt.alias is not None
+            in_real = self.call_form_in_real(tgt)
+            if in_real is not None:
+                return in_real
             return self.expr(tgt.alias, want=want if t is None else t)
         if tgt.kind == "conv":
             assert tgt.conv is not None
             return self.conversion(self.expr(tgt.inputs[0][1], want=tgt.conv[0]),
                                    *tgt.conv)
         return self.std_call(e, t)
+
+    def call_form_in_real(self, tgt: CallTarget) -> str | None:
+        """ADD(...), MUL(...), GT(...) ... on REAL inputs as MatIEC's standard functions
+        compute them: each input passed as (REAL)(...), so rounded to float where a REAL
+        literal made C compute it in double, and every step in float; the operator form
+        (`x + 1.4 + 1.4`) computes in double and rounds once. None for other types."""
+        assert tgt.alias is not None
+        args = [x for _, x in tgt.inputs]
+        types = [self.p.expr_types.get(x) for x in args]
+        if REAL not in types or not all(x is REAL or isinstance(x, LiteralType) for x in types):
+            return None
+        vals = [f"((float){self.expr(x, want=REAL)})" for x in args]
+        node = tgt.alias
+        while isinstance(node, A.Binary) and node.op == "AND":
+            node = node.left  # an extensible comparison: (a > b) AND (b > c) ...
+        assert isinstance(node, A.Binary)
+        if node.op in ("=", "<>", "<", "<=", ">", ">="):
+            pairs = [self.binary_node(node, BOOL, vals[i], vals[i + 1])
+                     for i in range(len(vals) - 1)]
+            return "(" + " && ".join(pairs) + ")"
+        acc = vals[0]
+        for v in vals[1:]:
+            acc = self.binary_node(node, REAL, acc, v)
+        return acc
 
     def literal(self, e: A.Literal, t: Type | None, negate: bool = False) -> str:
         v = e.value
