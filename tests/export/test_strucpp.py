@@ -73,6 +73,40 @@ def library_files() -> list[Path]:
     return PROJECT.library()
 
 
+def block_files() -> list[Path]:
+    """The files whose FUNCTION_BLOCKs a user may instantiate: st/*.st and the controller's
+    blocks (plc_project/controller/*.st)."""
+    return [*PROJECT.library(), *PROJECT.components()]
+
+
+EVERY_BLOCK_PREFIX = "I_"
+
+
+def every_block_program() -> str:
+    """A PROGRAM with one instance (named I_<block>) of every FUNCTION_BLOCK the parsed
+    block_files() declare, and a CONFIGURATION running it: a new block is in it without
+    anyone listing it."""
+    _, sources = load_sources(block_files(), PROJECT, library=[], need_config=False)
+    blocks = [p.name for s in sources for p in s.unit.pous if p.kind == "FUNCTION_BLOCK"]
+    assert len(blocks) >= 40, f"only {len(blocks)} FUNCTION_BLOCKs parsed: {blocks}"
+    instances = "\n".join(f"    {EVERY_BLOCK_PREFIX}{b} : {b};" for b in blocks)
+    return f"""PROGRAM EveryBlock
+  VAR
+{instances}
+    Scans : DINT;
+  END_VAR
+  Scans := Scans + 1;
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK MainTask(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM Every WITH MainTask : EveryBlock;
+  END_RESOURCE
+END_CONFIGURATION
+"""
+
+
 # ------------------------------------------------------------------ builds, two at a time
 @dataclass(frozen=True)
 class Build:
@@ -172,6 +206,24 @@ class Builds:
             return self.tool.api_files(CONTROLLER_UPLOAD, folder), folder
         return self._job("editor", work)
 
+    def every_block(self) -> Future[tuple[Result, Path]]:
+        """A PROGRAM holding one instance of every FUNCTION_BLOCK of st/ and
+        plc_project/controller/ (:func:`every_block_program`), in a CONFIGURATION, with what
+        it uses of the library, through STruC++'s compile API as the v4 editor gets it."""
+        def work() -> tuple[Result, Path]:
+            folder = self.root / "every_block"
+            folder.mkdir()
+            probe = folder / "every_block_program.st"
+            with self.armbench:
+                probe.write_text(every_block_program(), encoding="utf-8")
+                _, sources = load_sources([probe], PROJECT, library=block_files(),
+                                          need_config=True)
+            source = folder / "every_block.st"
+            source.write_text("\n".join(upload_text(s) if s.library else s.text
+                                        for s in sources), encoding="utf-8")
+            return self.tool.api_files(source, folder / "api"), folder / "api"
+        return self._job("every_block", work)
+
     def values(self) -> Future[ValueRun]:
         def work() -> ValueRun:
             from armbench.compiler import compile_files
@@ -228,6 +280,7 @@ def builds(strucpp: Strucpp, tmp_path_factory: pytest.TempPathFactory,
                         ("test_strucpp_output_splits_one_unit_per_pou", b.controller),
                         ("test_strucpp_debug_table_of_the_controller_builds",
                          b.editor_files),
+                        ("test_strucpp_debug_table_of_every_block_builds", b.every_block),
                         ("test_strucpp_builds_the_library", b.library)):
         if test in selected:
             start()
@@ -327,6 +380,49 @@ def test_strucpp_debug_table_of_the_controller_builds(builds: Builds) -> None:
     assert errors and len(known) == len(errors), "\n".join(errors[:20])
     pytest.xfail(f"STruC++'s generated_debug.cpp indexes 2-D arrays as [i][j]: {len(known)} "
                  "errors (IEC_ARRAY_2D has no operator[])")
+
+
+def debug_table_failures(table: Path, gxx_output: str) -> dict[str, dict[str, int]]:
+    """g++'s errors on a generated_debug.cpp, by the variable path each failing line's
+    comment names: {instance: {member: errors}} (member without its subscripts, nested
+    members joined by '.'); an error on a line without a variable path counts under ''."""
+    lines = table.read_text(encoding="utf-8").splitlines()
+    found: dict[str, dict[str, int]] = {}
+    for m in re.finditer(rf"{re.escape(table.name)}:(\d+):\d+: error: ", gxx_output):
+        line = lines[int(m[1]) - 1]
+        path = line.rsplit("// ", 1)[1] if "// " in line else ""
+        parts = path.split(".")
+        instance = parts[1] if len(parts) > 1 else ""
+        member = re.sub(r"\[[^]]*\]", "", ".".join(parts[2:]))
+        per = found.setdefault(instance, {})
+        per[member] = per.get(member, 0) + 1
+    return found
+
+
+def test_strucpp_debug_table_of_every_block_builds(builds: Builds) -> None:
+    """Users instantiate the library's blocks in their own PROGRAMs, and the debugger's table
+    of such a program names every member of every instance (VAR, VAR_INPUT, VAR_OUTPUT,
+    VAR_IN_OUT, through STRUCTs and FB instances): it must compile for every
+    FUNCTION_BLOCK of st/ and of the controller's blocks. A 2-D array there is written
+    X[i][j], which IEC_ARRAY_2D cannot index (E0511). Run with -s for the table's size."""
+    if builds.tool.dist is None:
+        pytest.skip("STRUCPP names no checkout: its compile API is not at hand")
+    made, folder = builds.every_block().result()
+    assert made.ok, made.output[-4000:]
+    table = folder / "generated_debug.cpp"
+    assert table.is_file(), "STruC++ wrote no debug table for the every-block program"
+    entries = table.read_text(encoding="utf-8").count("// EVERY.")
+    print(f"\ngenerated_debug.cpp of every block: {entries} entries")
+    res = builds.tool.cxx(*V4_CXX_FLAGS[1:], V4_THREADED, f"-I{folder}", "-fsyntax-only",
+                          str(table))
+    failures = debug_table_failures(table, res.output)
+    report = "\n".join(
+        f"  {inst.removeprefix(EVERY_BLOCK_PREFIX)}: {sum(m.values())} errors in "
+        + ", ".join(f"{k} ({v})" for k, v in sorted(m.items()))
+        for inst, m in sorted(failures.items()))
+    assert res.ok and not failures, (
+        f"g++ fails on the debug table of {len(failures)} blocks' instances:\n{report}\n"
+        + "\n".join(ln for ln in res.output.splitlines() if ": error: " in ln)[:3000])
 
 
 # ------------------------------------------------------------------ 2. what STruC++ computes
