@@ -162,6 +162,12 @@ CODES: dict[str, tuple[str, str]] = {
     "E0510": ("CONSTANT without an initial value", "give it an initial value, or make it a plain "
               "VAR that nothing writes (VAR_EXTERNAL: drop CONSTANT): STruC++ (OpenPLC v4) "
               "refuses a constant without one"),
+    "E0511": ("array of 2 or more dimensions in a block's or program's state",
+              "keep the matrix in a FUNCTION or VAR_TEMP, or hold it as a 1-D array of "
+              "STRUCTs (one row per element) or as 1-D arrays (one per row or column): the "
+              "debugger's table of STruC++ (OpenPLC v4) cannot address the elements of a "
+              "FUNCTION_BLOCK's VAR, VAR_INPUT, VAR_OUTPUT or VAR_IN_OUT, a PROGRAM's VAR, "
+              "VAR_INPUT or VAR_OUTPUT, or a VAR_GLOBAL that is one or holds one"),
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
