@@ -31,13 +31,13 @@ instead.
   fields (they start at 0).
 - E0509 subscripts of, or initial values for, an array of 3 or more dimensions.
 - E0510 a CONSTANT without an initial value (VAR, VAR_TEMP, VAR_EXTERNAL CONSTANT).
-- E0511 an array of 2 or more dimensions in what the debugger's table (generated_debug.cpp,
+- E0511 an array of 2 or 3 dimensions in what the debugger's table (generated_debug.cpp,
   which the v4 editor writes with STruC++'s compile API and uploads) lists: the VAR (also
   CONSTANT), VAR_INPUT, VAR_OUTPUT and VAR_IN_OUT of a FUNCTION_BLOCK, the VAR, VAR_INPUT and
   VAR_OUTPUT of a PROGRAM, VAR_GLOBALs, also inside STRUCT fields and array elements. The
-  table takes each element's address as X[i][j], and the runtime's 2-D and deeper arrays
-  have no operator[]. VAR_TEMP, VAR_EXTERNAL, FUNCTIONs and a PROGRAM's VAR_IN_OUT are not
-  in the table.
+  table takes each element's address as X[i][j], and the runtime's 2-D and 3-D arrays
+  have no operator[] (4-D and deeper ones are nested 1-D arrays, which have). VAR_TEMP,
+  VAR_EXTERNAL, FUNCTIONs and a PROGRAM's VAR_IN_OUT are not in the table.
 """
 
 from __future__ import annotations
@@ -337,12 +337,13 @@ _DEBUGGED = {"FUNCTION_BLOCK": frozenset({A.VAR, A.VAR_INPUT, A.VAR_OUTPUT, A.VA
 
 
 def multi_dim_part(t: Type, seen: frozenset[str] = frozenset()) -> tuple[str, int] | None:
-    """Where a value of type ``t`` holds an array of 2 or more dimensions, through STRUCT
-    fields and array elements (not FB instances: each FUNCTION_BLOCK is checked where it
-    is declared): ('' for ``t`` itself, '.Field', '[..].Field', ...; its dimensions), or
-    None."""
+    """Where a value of type ``t`` holds an array of 2 or 3 dimensions (the runtime's
+    IEC_ARRAY_2D and IEC_ARRAY_3D; deeper arrays are nested 1-D arrays there, which [i]
+    indexes), through STRUCT fields and array elements (not FB instances: each
+    FUNCTION_BLOCK is checked where it is declared): ('' for ``t`` itself, '.Field',
+    '[..].Field', ...; its dimensions), or None."""
     if isinstance(t, ArrayType):
-        if len(t.dims) >= 2:
+        if len(t.dims) in (2, 3):
             return "", len(t.dims)
         inner = multi_dim_part(t.element, seen)
         return (f"[..]{inner[0]}", inner[1]) if inner else None
@@ -383,7 +384,7 @@ def _check_debugged(rep: _Reporter, decl: A.VarDecl, t: Type, holder: str) -> No
     what = f"{decl.name}{path}" + (f" (type {t.name})" if t.name and not path else "")
     rep(decl, "E0511", f"{what} in {holder} is an array of {dims} dimensions: the debugger's "
         f"table of {_VIA} (generated_debug.cpp, which the v4 editor uploads) indexes its "
-        "elements as X[i][j], which its runtime's arrays of 2 or more dimensions cannot "
+        "elements as X[i][j], which its runtime's arrays of 2 and 3 dimensions cannot "
         "(g++ fails, and the v4 build with it): keep the matrix in a FUNCTION or VAR_TEMP, or "
         "hold it as a 1-D array of STRUCTs (one row per element) or as 1-D arrays (one per "
         "row or column)")
