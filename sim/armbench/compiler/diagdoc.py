@@ -161,8 +161,8 @@ build in MatIEC, STruC++, RuSTy and CODESYS alike.
 - **E0509 arrays of 3 or more dimensions.** Its runtime's 3-D array has no element access
   and no initialiser, and its deeper arrays (nested 1-D arrays) no `at(i, j, k, l)`:
   declaring, copying and passing them whole builds, a subscript or an initial value fails.
-  Use an array of STRUCTs that each hold a 2-D array (`A[i].M[j, k]`), in a FUNCTION or
-  VAR_TEMP (E0511).
+  Use an array of STRUCTs that each hold a 2-D array (`A[i].M[j, k]`), in a FUNCTION
+  (E0511).
 - **E0510 CONSTANT without a value.** "CONSTANT variable must have an initializer", for any
   type, in VAR, VAR_TEMP and VAR_EXTERNAL CONSTANT (which cannot have one). Give the value,
   or use a plain VAR of a code STRUCT that nothing writes (a VAR_EXTERNAL without CONSTANT).
@@ -174,10 +174,10 @@ build in MatIEC, STruC++, RuSTy and CODESYS alike.
   VAR_GLOBALs, through STRUCT fields and array elements. It writes an element of a 2-D or
   3-D array as `X[i][j]`, which the runtime's `IEC_ARRAY_2D`/`IEC_ARRAY_3D` cannot index
   (they have `(i, j)` and `at(i, j)`), and g++ fails (4-D and deeper arrays are nested 1-D
-  arrays there and build). Keep matrices in a FUNCTION (its variables are not in the table)
-  or in VAR_TEMP (not in it either; it starts from zero at every call: write it before you
-  read it), or hold them as a 1-D array of STRUCTs (`Rows[i].Cols[j]`) or as one 1-D array
-  per row or column; a block's matrix output becomes its columns
+  arrays there and build). Keep matrices in a FUNCTION (its variables are not in the table;
+  neither is VAR_TEMP, but OpenPLC v3 builds no VAR_TEMP of an array or STRUCT type), or
+  hold them as a 1-D array of STRUCTs (`Rows[i].Cols[j]`) or as one 1-D array per row or
+  column; a block's matrix output becomes its columns
   (`ForwardKinematic5Axis.ToolAxisX`..`ToolAxisZ`). STruC++ 0.6.1 and its newest sources
   seen (main, August 2026) write the table so.
 """

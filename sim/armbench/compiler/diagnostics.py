@@ -157,15 +157,15 @@ CODES: dict[str, tuple[str, str]] = {
               "drops the initial values of a PROGRAM's arrays, of array VAR_GLOBALs and of array "
               "STRUCT fields, silently (they start at 0)"),
     "E0509": ("array of 3 or more dimensions subscripted or initialised",
-              "use an array of STRUCTs that each hold a 2-D array (A[i].M[j, k]; in a FUNCTION "
-              "or VAR_TEMP: E0511): STruC++'s runtime (OpenPLC v4) has no element access and "
+              "use an array of STRUCTs that each hold a 2-D array (A[i].M[j, k]; in a FUNCTION: "
+              "E0511): STruC++'s runtime (OpenPLC v4) has no element access and "
               "no initialiser for them"),
     "E0510": ("CONSTANT without an initial value", "give it an initial value, or make it a plain "
               "VAR that nothing writes (VAR_EXTERNAL: drop CONSTANT): STruC++ (OpenPLC v4) "
               "refuses a constant without one"),
     "E0511": ("array of 2 or 3 dimensions in a block's or program's state",
-              "keep the matrix in a FUNCTION or VAR_TEMP, or hold it as a 1-D array of "
-              "STRUCTs (one row per element) or as 1-D arrays (one per row or column): the "
+              "keep the matrix in a FUNCTION, or hold it as a 1-D array of STRUCTs (one row "
+              "per element) or as 1-D arrays (one per row or column): the "
               "debugger's table of STruC++ (OpenPLC v4) cannot address the elements of a "
               "FUNCTION_BLOCK's VAR, VAR_INPUT, VAR_OUTPUT or VAR_IN_OUT, a PROGRAM's VAR, "
               "VAR_INPUT or VAR_OUTPUT, or a VAR_GLOBAL that is one or holds one"),

@@ -385,9 +385,8 @@ def _check_debugged(rep: _Reporter, decl: A.VarDecl, t: Type, holder: str) -> No
     rep(decl, "E0511", f"{what} in {holder} is an array of {dims} dimensions: the debugger's "
         f"table of {_VIA} (generated_debug.cpp, which the v4 editor uploads) indexes its "
         "elements as X[i][j], which its runtime's arrays of 2 and 3 dimensions cannot "
-        "(g++ fails, and the v4 build with it): keep the matrix in a FUNCTION or VAR_TEMP, or "
-        "hold it as a 1-D array of STRUCTs (one row per element) or as 1-D arrays (one per "
-        "row or column)")
+        "(g++ fails, and the v4 build with it): keep the matrix in a FUNCTION, or hold it as a "
+        "1-D array of STRUCTs (one row per element) or as 1-D arrays (one per row or column)")
 
 
 # ------------------------------------------------------------------ expressions
