@@ -45,6 +45,7 @@ from typing import Any
 
 import pytest
 import strucpp_cases
+from every_block import INSTANCE_PREFIX, every_block_source
 from strucpp_values import (
     Values,
     agreement,
@@ -72,40 +73,6 @@ V4_THREADED = "-DSTRUCPP_THREADED"
 
 def library_files() -> list[Path]:
     return PROJECT.library()
-
-
-def block_files() -> list[Path]:
-    """The files whose FUNCTION_BLOCKs a user may instantiate: st/*.st and the controller's
-    blocks (plc_project/controller/*.st)."""
-    return [*PROJECT.library(), *PROJECT.components()]
-
-
-EVERY_BLOCK_PREFIX = "I_"
-
-
-def every_block_program() -> str:
-    """A PROGRAM with one instance (named I_<block>) of every FUNCTION_BLOCK the parsed
-    block_files() declare, and a CONFIGURATION running it: a new block is in it without
-    anyone listing it."""
-    _, sources = load_sources(block_files(), PROJECT, library=[], need_config=False)
-    blocks = [p.name for s in sources for p in s.unit.pous if p.kind == "FUNCTION_BLOCK"]
-    assert len(blocks) >= 40, f"only {len(blocks)} FUNCTION_BLOCKs parsed: {blocks}"
-    instances = "\n".join(f"    {EVERY_BLOCK_PREFIX}{b} : {b};" for b in blocks)
-    return f"""PROGRAM EveryBlock
-  VAR
-{instances}
-    Scans : DINT;
-  END_VAR
-  Scans := Scans + 1;
-END_PROGRAM
-
-CONFIGURATION Config0
-  RESOURCE Res0 ON PLC
-    TASK MainTask(INTERVAL := T#10ms, PRIORITY := 0);
-    PROGRAM Every WITH MainTask : EveryBlock;
-  END_RESOURCE
-END_CONFIGURATION
-"""
 
 
 # ------------------------------------------------------------------ builds, two at a time
@@ -209,19 +176,12 @@ class Builds:
 
     def every_block(self) -> Future[tuple[Result, Path]]:
         """A PROGRAM holding one instance of every FUNCTION_BLOCK of st/ and
-        plc_project/controller/ (:func:`every_block_program`), in a CONFIGURATION, with what
-        it uses of the library, through STruC++'s compile API as the v4 editor gets it."""
+        plc_project/controller/ (every_block.py), with the whole library, in a CONFIGURATION,
+        through STruC++'s compile API as the v4 editor gets it."""
         def work() -> tuple[Result, Path]:
             folder = self.root / "every_block"
-            folder.mkdir()
-            probe = folder / "every_block_program.st"
             with self.armbench:
-                probe.write_text(every_block_program(), encoding="utf-8")
-                _, sources = load_sources([probe], PROJECT, library=block_files(),
-                                          need_config=True)
-            source = folder / "every_block.st"
-            source.write_text("\n".join(upload_text(s) if s.library else s.text
-                                        for s in sources), encoding="utf-8")
+                source = every_block_source(folder)
             return self.tool.api_files(source, folder / "api"), folder / "api"
         return self._job("every_block", work)
 
@@ -407,7 +367,7 @@ def test_strucpp_debug_table_of_every_block_builds(builds: Builds) -> None:
                           str(table))
     failures = debug_table_failures(table, res.output)
     report = "\n".join(
-        f"  {inst.removeprefix(EVERY_BLOCK_PREFIX)}: {sum(m.values())} errors in "
+        f"  {inst.removeprefix(INSTANCE_PREFIX)}: {sum(m.values())} errors in "
         + ", ".join(f"{k} ({v})" for k, v in sorted(m.items()))
         for inst, m in sorted(failures.items()))
     assert res.ok and not failures, (

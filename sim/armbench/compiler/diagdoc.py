@@ -26,7 +26,7 @@ CODESYS family refuse (Targets, below).
 
 
 TARGETS = """
-## Targets (E0214, E0215, E0309, E0411, E0602 and STruC++'s codes)
+## Targets (E0214, E0215, E0309, E0411, E0512, E0602 and STruC++'s codes)
 
 `armbench check --target openplc|openplc-v4|codesys|all` (default `all`; in Python
 `check_files(paths, target=Target.named("codesys"))`) says which compilers the code is for:
@@ -52,6 +52,7 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
 | E0215 `__`, trailing `_` | error | warning | error (`__`), warning (trailing) | error |
 | E0309 TRUNC narrowed | nothing | nothing | warning | warning |
 | E0411 array element as in-out | error | warning | warning | error |
+| E0512 VAR_TEMP in a FUNCTION, or of an array or STRUCT type | error | warning | warning | error |
 | the other STruC++ codes (below) | warning | error | warning | error |
 | E0312 TIME conversion | warning | warning | nothing | error |
 | E0602 CONFIGURATION not Config0, RESOURCE not Res0 | error | warning | warning | error |
@@ -80,6 +81,13 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
   VAR_IN_OUT given an element, and a STRUCT field without an index build. Write
   `Tmp := Arr[I]; Ok := Bump(Val := Tmp); Arr[I] := Tmp;`, or pass the whole array as
   VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK.
+- **E0512.** iec2c's grammar has no VAR_TEMP in a FUNCTION ("unexpected temporary located
+  variable(s) declaration in function declaration"), and in a FUNCTION_BLOCK or PROGRAM it
+  initialises a VAR_TEMP of an array or STRUCT type as `__SET_VAR(data__->,M,,)`, which g++
+  refuses ("expected primary-expression"); elementary and enumeration VAR_TEMPs build.
+  STruC++ builds all of them. Write instead: VAR (a FUNCTION's starts afresh at every call;
+  a block's keeps its value, so write it before you read it), or move the computation into a
+  FUNCTION.
 - **E0602, the names.** OpenPLC v3's upload needs `CONFIGURATION Config0` and `RESOURCE Res0`
   (its runtime's build looks for the C files MatIEC names after them); MatIEC compiles any
   names, CODESYS takes any, and the soft PLC runs any, saying

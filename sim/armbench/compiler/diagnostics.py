@@ -169,6 +169,10 @@ CODES: dict[str, tuple[str, str]] = {
               "debugger's table of STruC++ (OpenPLC v4) cannot address the elements of a "
               "FUNCTION_BLOCK's VAR, VAR_INPUT, VAR_OUTPUT or VAR_IN_OUT, a PROGRAM's VAR, "
               "VAR_INPUT or VAR_OUTPUT, or a VAR_GLOBAL that is one or holds one"),
+    "E0512": ("VAR_TEMP OpenPLC v3 does not build", "declare it in VAR: MatIEC has no VAR_TEMP "
+              "in a FUNCTION, and OpenPLC's C build fails on a VAR_TEMP of an array or STRUCT "
+              "type in a FUNCTION_BLOCK or PROGRAM (an error for --target openplc and all, a "
+              "warning for codesys and openplc-v4)"),
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),
