@@ -28,7 +28,7 @@ from armbench.compiler import compile_files
 ROOT = Path(__file__).parent.parent
 # the pose set and the chain of the unit tests, so that bench and test draw the same targets
 sys.path.insert(0, str(ROOT / "tests" / "unit"))
-from chain_models import MM_PER_M, chain_of, puma_folded_elbow_set  # noqa: E402
+from chain_models import MM_PER_M, chain_of, chain_pose, puma_folded_elbow_set  # noqa: E402
 
 POSES_PER_SET = 120
 SPREADS = (0.5, 1.0, math.pi)
@@ -69,7 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 target[:3, 3] *= 1000.0
                 for cap, tally in tallies.items():
                     ik(Execute=False)
-                    ik(Execute=True, Chain=chain, Target=target.tolist(),
+                    ik(Execute=True, Chain=chain, Target=chain_pose(target),
                        Seed=[math.degrees(v) for v in q0], PositionOnly=False, TolMm=0.005,
                        TolDeg=5e-4, ItersPerScan=cap, MaxIters=cap)
                     tally.solved_by_rtb += ok

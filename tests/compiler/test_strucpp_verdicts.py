@@ -14,6 +14,12 @@ Where g++ fails on E0310 and E0412 cases, it fails on exactly the ST lines the c
 flags (STruC++ writes #line directives with --line-directives): the C++ type model of
 armbench.compiler.cxxtypes is checked construct by construct, not only file by file.
 
+OpenPLC v4's editor also uploads the debugger's table generated_debug.cpp, which STruC++'s
+compile API writes (not its command line): for every case with a CONFIGURATION, where STRUCPP
+names a checkout, that table is built too, and E0511 must be reported exactly where g++ fails
+on it: for an E0511 case that is its verdict, and the declarations the failing table entries
+lead to (through FB instances) must be the lines E0511 flags.
+
 The bench, which computes what MatIEC computes, must satisfy every CHECK (test_checks_hold_
 in_the_bench): the CHECKs are the OpenPLC v3 values, not STruC++'s.
 
@@ -41,8 +47,11 @@ from st_corpus import (
 )
 
 from armbench.compiler import check_files, compile_files
+from armbench.compiler.driver import analyse_program
 from armbench.compiler.strucpp import STRUCPP_CODES
-from armbench.compiler.targets import OPENPLC_V4_ONLY
+from armbench.compiler.symbols import CheckedProgram, PouSym
+from armbench.compiler.targets import OPENPLC_V4_ONLY, Target
+from armbench.compiler.types import PouType
 from strucpp_tool import SKIP_REASON, V4_CXX_FLAGS, Strucpp, find_strucpp
 
 FILES = sorted(f for f in DIAGNOSTICS.glob("E*.st") if f.stem.split("_")[0] in STRUCPP_CODES)
@@ -139,6 +148,61 @@ def run_checks(tool: Strucpp, cpp: Path, checks: list[Check], work: Path) -> Ver
     return Verdict(False, "STruC++'s build satisfies every CHECK")
 
 
+# the code of the debugger's table, which STruC++'s compile API writes
+DEBUG_TABLE_CODE = "E0511"
+
+
+@dataclass(frozen=True)
+class TableVerdict:
+    fails: bool
+    why: str
+    paths: frozenset[str] = frozenset()  # the variable paths of the failing entries
+
+
+def debug_table_verdict(tool: Strucpp, st: Path, work: Path) -> TableVerdict | None:
+    """generated_debug.cpp of ``st`` as the v4 editor gets it, compiled with g++ as the v4
+    runtime does; None where STruC++'s compile API is not at hand, the file has no
+    CONFIGURATION (no table then) or STruC++ refuses it."""
+    if tool.dist is None or "CONFIGURATION" not in st.read_text(encoding="utf-8"):
+        return None
+    folder = work / "api"
+    made = tool.api_files(st, folder)
+    table = folder / "generated_debug.cpp"
+    if not made.ok or not table.is_file():
+        return None
+    res = tool.cxx(*FLAGS, f"-I{folder}", "-fsyntax-only", str(table))
+    if res.ok:
+        return TableVerdict(False, "g++ builds its debug table")
+    lines = table.read_text(encoding="utf-8").splitlines()
+    paths = {lines[int(n) - 1].rsplit("// ", 1)[-1]
+             for n in re.findall(r"generated_debug\.cpp:(\d+):\d+: error", res.output)}
+    return TableVerdict(True, f"g++ fails on its debug table:\n{res.output[-3000:]}",
+                        frozenset(paths))
+
+
+def declaration_lines(prog: CheckedProgram, paths: frozenset[str]) -> set[int]:
+    """The lines of the declarations that the debug table's paths (INSTANCE.FB.MEMBER[i]...
+    or GLOBAL[i]...) lead to: through FB instances to the variable of the block that holds
+    the array (or a STRUCT around it)."""
+    assert prog.config is not None
+    instances = {i.name.upper(): i.pou for i in prog.config.instances}
+    found = set()
+    for path in paths:
+        names = [re.sub(r"\[.*", "", seg) for seg in path.split(".")]
+        if names[0] not in instances:
+            found.add(prog.config.globals[names[0]].pos.line)
+            continue
+        sym: PouSym = instances[names[0]]
+        for name in names[1:]:
+            var = next(v for k, v in sym.vars.items() if k.upper() == name)
+            if isinstance(var.type, PouType) and isinstance(var.type.symbol, PouSym):
+                sym = var.type.symbol
+                continue
+            found.add(var.pos.line)
+            break
+    return found
+
+
 def test_corpus_has_both_kinds_for_every_code() -> None:
     for code in STRUCPP_CODES:
         cases = [f for f in FILES if f.stem.split("_")[0] == code]
@@ -153,6 +217,12 @@ def test_strucpp_agrees(strucpp: Strucpp, path: Path, tmp_path: Path) -> None:
     ours = [d.render() for d in diags]
     reported = any(d.code == code for d in diags)
     verdict = strucpp_verdict(strucpp, path, tmp_path)
+    if code == DEBUG_TABLE_CODE:
+        # its command line's C++ builds (and satisfies the CHECKs): the table decides
+        assert not verdict.refused, verdict.why
+        table = debug_table_verdict(strucpp, path, tmp_path)
+        assert table is not None, "an E0511 case needs STruC++'s compile API (a checkout)"
+        verdict = Verdict(table.fails, table.why)
     assert reported == verdict.refused, (
         f"--target openplc-v4 {'reports' if reported else 'does not report'} {code}, and "
         f"{verdict.why}\n" + "\n".join(ours))
@@ -161,6 +231,32 @@ def test_strucpp_agrees(strucpp: Strucpp, path: Path, tmp_path: Path) -> None:
         assert flagged == verdict.lines, (
             f"g++ fails on lines {sorted(verdict.lines)}, {code} flags {sorted(flagged)}\n"
             + verdict.why)
+
+
+@pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES])
+def test_the_debug_table_agrees(strucpp: Strucpp, path: Path, tmp_path: Path) -> None:
+    """E0511 is reported where g++ fails on the debugger's table, on the declarations its
+    failing entries lead to; an E0511 case's verdict is its table's."""
+    table = debug_table_verdict(strucpp, path, tmp_path)
+    if table is None:
+        if path.stem.startswith(DEBUG_TABLE_CODE):
+            assert strucpp.dist is not None, "an E0511 case needs STruC++'s compile API"
+            pytest.fail(f"STruC++'s compile API wrote no debug table for {path.name}")
+        pytest.skip("no debug table: no CONFIGURATION, STruC++ refuses the file, or STRUCPP "
+                    "names no checkout")
+    diags = check_files([path], target=OPENPLC_V4_ONLY)
+    flagged = {d.pos.line for d in diags if d.code == DEBUG_TABLE_CODE}
+    assert bool(flagged) == table.fails, (
+        f"--target openplc-v4 {'reports' if flagged else 'does not report'} E0511, and "
+        f"{table.why}\n" + "\n".join(d.render() for d in diags))
+    if table.fails:
+        # E0511 is the rule of openplc-v4 alone: for openplc it is not reported, and the
+        # program resolves
+        prog = analyse_program([path], target=Target.named("openplc")).program
+        assert prog is not None, f"{path.name} does not resolve"
+        lines = declaration_lines(prog, table.paths)
+        assert lines == flagged, (f"the failing entries lead to lines {sorted(lines)}, E0511 "
+                                  f"flags {sorted(flagged)}:\n" + "\n".join(sorted(table.paths)))
 
 
 @pytest.mark.parametrize("path", [pytest.param(f, id=f.stem) for f in FILES

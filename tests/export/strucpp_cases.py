@@ -563,10 +563,11 @@ def chain_case() -> ValueCase:
     END_FOR;
   END_FOR;
   FOR K := 1 TO {n_ik} DO
-    FOR R := 1 TO 4 DO
-      FOR C := 1 TO 4 DO
-        Target[R, C] := Tgt[(K - 1) * 16 + (R - 1) * 4 + C];
-      END_FOR;
+    FOR R := 1 TO 3 DO
+      Target.AxisX[R] := Tgt[(K - 1) * 16 + (R - 1) * 4 + 1];
+      Target.AxisY[R] := Tgt[(K - 1) * 16 + (R - 1) * 4 + 2];
+      Target.AxisZ[R] := Tgt[(K - 1) * 16 + (R - 1) * 4 + 3];
+      Target.Origin[R] := Tgt[(K - 1) * 16 + (R - 1) * 4 + 4];
     END_FOR;
     FOR J := 1 TO 6 DO
       Seed[J] := Seeds[(K - 1) * 6 + J];
@@ -593,7 +594,7 @@ def chain_case() -> ValueCase:
     Q : JointVector;
     Seed : JointVector;
     T : Mat4;
-    Target : Mat4;
+    Target : ChainPose;
     Frames : ChainFrameStack;
     Jac : ChainMat6;
     Ik : InverseKinematik_Chain;

@@ -14,9 +14,10 @@ to build it); skipped otherwise.
    C++ is compiled to objects by the whole-library build; checking it again per file would
    triple the suite's time). With a checkout (STRUCPP = its dist/node/cli.js) also what
    STruC++'s compile API gives OpenPLC v4's editor: the same per-POU files as the CLI's
-   output cut by split_units, and the debugger's generated_debug.cpp, which does not compile
-   for the controller today (2-D array elements written X[i][j]): an expected failure while
-   that is its only error.
+   output cut by split_units, and the debugger's generated_debug.cpp, which must compile for
+   the controller and for a PROGRAM holding an instance of every FUNCTION_BLOCK of st/ and of
+   the controller's blocks (STruC++ writes a 2-D array's elements there as X[i][j], which its
+   runtime cannot index: E0511 keeps such arrays out of the blocks' state).
 2. What STruC++ computes (strucpp_cases.py): library POUs called on many inputs by generated
    PROGRAMs; the same source runs on STruC++ (its C++ and a main of ours) and on the bench
    compiler. Integers and BOOLs must be equal, REAL and LREAL values within a few units in
@@ -44,6 +45,7 @@ from typing import Any
 
 import pytest
 import strucpp_cases
+from every_block import INSTANCE_PREFIX, every_block_source
 from strucpp_values import (
     Values,
     agreement,
@@ -173,6 +175,17 @@ class Builds:
             return self.tool.api_files(CONTROLLER_UPLOAD, folder), folder
         return self._job("editor", work)
 
+    def every_block(self) -> Future[tuple[Result, Path]]:
+        """A PROGRAM holding one instance of every FUNCTION_BLOCK of st/ and
+        plc_project/controller/ (every_block.py), with the whole library, in a CONFIGURATION,
+        through STruC++'s compile API as the v4 editor gets it."""
+        def work() -> tuple[Result, Path]:
+            folder = self.root / "every_block"
+            with self.armbench:
+                source = every_block_source(folder)
+            return self.tool.api_files(source, folder / "api"), folder / "api"
+        return self._job("every_block", work)
+
     def values(self) -> Future[ValueRun]:
         def work() -> ValueRun:
             from armbench.compiler import compile_files
@@ -229,6 +242,7 @@ def builds(strucpp: Strucpp, tmp_path_factory: pytest.TempPathFactory,
                         ("test_strucpp_output_splits_one_unit_per_pou", b.controller),
                         ("test_strucpp_debug_table_of_the_controller_builds",
                          b.editor_files),
+                        ("test_strucpp_debug_table_of_every_block_builds", b.every_block),
                         ("test_strucpp_builds_the_library", b.library)):
         if test in selected:
             start()
@@ -282,13 +296,6 @@ def test_strucpp_output_splits_one_unit_per_pou(builds: Builds) -> None:
     assert sorted(names[1:]) == sorted(f"pou_{p.name.upper()}.cpp" for p in unit.pous)
 
 
-# the one thing of the controller's C++ that does not compile: the debugger's table takes the
-# address of a 2-D array's element as X[i][j], and the runtime's 2-D arrays have no
-# operator[] (only (i, j) and at(i, j))
-DEBUG_TABLE_2D = re.compile(r"error: no match for .operator\[\]. \(operand types are .*"
-                            r"\baka .strucpp::IEC_ARRAY_2D<")
-
-
 def test_strucpp_api_gives_the_files_the_cli_split_gives(builds: Builds) -> None:
     """What the v4 editor gets from STruC++'s compile API (cppFiles) is what split_units cuts
     from the CLI's output, file by file."""
@@ -310,9 +317,8 @@ def test_strucpp_api_gives_the_files_the_cli_split_gives(builds: Builds) -> None
 def test_strucpp_debug_table_of_the_controller_builds(builds: Builds) -> None:
     """generated_debug.cpp, which the v4 editor uploads and the runtime compiles with the
     rest (scripts/Makefile.strucpp), must compile too. STruC++ 0.6.1 writes a 2-D array's
-    element as X[i][j] there (the controller holds Mat3 and ARRAY[0..64, 1..3] members), which
-    the runtime's IEC_ARRAY_2D cannot index: an expected failure while exactly that is
-    the only error; anything else fails."""
+    element as X[i][j] there, which the runtime's IEC_ARRAY_2D cannot index: the controller
+    held Mat3 and ARRAY[0..64, 1..3] members (435 g++ errors) before E0511 kept them out."""
     if builds.tool.dist is None:
         pytest.skip("STRUCPP names no checkout: its compile API is not at hand")
     made, folder = builds.editor_files().result()
@@ -321,13 +327,53 @@ def test_strucpp_debug_table_of_the_controller_builds(builds: Builds) -> None:
     assert table.is_file(), "STruC++ wrote no debug table for the controller"
     res = builds.tool.cxx(*V4_CXX_FLAGS[1:], V4_THREADED, f"-I{folder}", "-fsyntax-only",
                           str(table))
-    if res.ok:
-        return
-    errors = [ln for ln in res.output.splitlines() if ": error: " in ln]
-    known = [ln for ln in errors if DEBUG_TABLE_2D.search(ln)]
-    assert errors and len(known) == len(errors), "\n".join(errors[:20])
-    pytest.xfail(f"STruC++'s generated_debug.cpp indexes 2-D arrays as [i][j]: {len(known)} "
-                 "errors (IEC_ARRAY_2D has no operator[])")
+    failures = debug_table_failures(table, res.output)
+    assert res.ok, (f"g++ fails on the controller's debug table: {failures}\n"
+                    + "\n".join(ln for ln in res.output.splitlines()
+                                if ": error: " in ln)[:3000])
+
+
+def debug_table_failures(table: Path, gxx_output: str) -> dict[str, dict[str, int]]:
+    """g++'s errors on a generated_debug.cpp, by the variable path each failing line's
+    comment names: {instance: {member: errors}} (member without its subscripts, nested
+    members joined by '.'); an error on a line without a variable path counts under ''."""
+    lines = table.read_text(encoding="utf-8").splitlines()
+    found: dict[str, dict[str, int]] = {}
+    for m in re.finditer(rf"{re.escape(table.name)}:(\d+):\d+: error: ", gxx_output):
+        line = lines[int(m[1]) - 1]
+        path = line.rsplit("// ", 1)[1] if "// " in line else ""
+        parts = path.split(".")
+        instance = parts[1] if len(parts) > 1 else ""
+        member = re.sub(r"\[[^]]*\]", "", ".".join(parts[2:]))
+        per = found.setdefault(instance, {})
+        per[member] = per.get(member, 0) + 1
+    return found
+
+
+def test_strucpp_debug_table_of_every_block_builds(builds: Builds) -> None:
+    """Users instantiate the library's blocks in their own PROGRAMs, and the debugger's table
+    of such a program names every member of every instance (VAR, VAR_INPUT, VAR_OUTPUT,
+    VAR_IN_OUT, through STRUCTs and FB instances): it must compile for every
+    FUNCTION_BLOCK of st/ and of the controller's blocks. A 2-D array there is written
+    X[i][j], which IEC_ARRAY_2D cannot index (E0511). Run with -s for the table's size."""
+    if builds.tool.dist is None:
+        pytest.skip("STRUCPP names no checkout: its compile API is not at hand")
+    made, folder = builds.every_block().result()
+    assert made.ok, made.output[-4000:]
+    table = folder / "generated_debug.cpp"
+    assert table.is_file(), "STruC++ wrote no debug table for the every-block program"
+    entries = table.read_text(encoding="utf-8").count("// EVERY.")
+    print(f"\ngenerated_debug.cpp of every block: {entries} entries")
+    res = builds.tool.cxx(*V4_CXX_FLAGS[1:], V4_THREADED, f"-I{folder}", "-fsyntax-only",
+                          str(table))
+    failures = debug_table_failures(table, res.output)
+    report = "\n".join(
+        f"  {inst.removeprefix(INSTANCE_PREFIX)}: {sum(m.values())} errors in "
+        + ", ".join(f"{k} ({v})" for k, v in sorted(m.items()))
+        for inst, m in sorted(failures.items()))
+    assert res.ok and not failures, (
+        f"g++ fails on the debug table of {len(failures)} blocks' instances:\n{report}\n"
+        + "\n".join(ln for ln in res.output.splitlines() if ": error: " in ln)[:3000])
 
 
 # ------------------------------------------------------------------ 2. what STruC++ computes

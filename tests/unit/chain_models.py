@@ -79,6 +79,15 @@ def pose_st(T: NDArray[np.float64], scale: float) -> list[list[float]]:
     return rows
 
 
+def chain_pose(T: Any, scale: float = 1.0) -> dict[str, list[float]]:
+    """A 4x4 pose as InverseKinematik_Chain's Target, a ChainPose: the matrix's columns 1..4
+    (rows 1..3) as AxisX, AxisY, AxisZ and Origin, the Origin times ``scale`` (MM_PER_M for
+    a toolbox pose in metres)."""
+    m = np.array(T, dtype=float)
+    return {"AxisX": m[:3, 0].tolist(), "AxisY": m[:3, 1].tolist(),
+            "AxisZ": m[:3, 2].tolist(), "Origin": (m[:3, 3] * scale).tolist()}
+
+
 def rotation_angle_deg(Ra: NDArray[np.float64], Rb: NDArray[np.float64]) -> float:
     c = (np.trace(Ra @ Rb.T) - 1.0) / 2.0
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))

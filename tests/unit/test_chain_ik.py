@@ -19,11 +19,11 @@ from chain_models import (
     FOUR_AXIS_GEO,
     MM_PER_M,
     chain_of,
+    chain_pose,
     empty_link,
     four_axis_rtb,
     joints_rtb,
     joints_st,
-    pose_st,
     puma560,
     puma_case,
     puma_folded_elbow_set,
@@ -74,7 +74,7 @@ def test_puma_converges_wherever_ikine_lm_does(st_module: Any, task: str,
         Tep = robot.fkine(qt)
         sol = robot.ikine_LM(Tep, q0=q0, ilimit=100, slimit=1, tol=RTB_TOL,
                              joint_limits=False, mask=mask)
-        solve(ik, Chain=chain, Target=pose_st(Tep.A, MM_PER_M),
+        solve(ik, Chain=chain, Target=chain_pose(Tep.A, MM_PER_M),
               Seed=joints_st(robot, q0, MM_PER_M), PositionOnly=position_only,
               TolMm=0.005, TolDeg=5e-4)
         assert ik.Done != ik.Error and not ik.Busy
@@ -123,7 +123,7 @@ def test_puma_folded_elbow_converges_wherever_ikine_lm_does(st_module: Any) -> N
         Tep = robot.fkine(qt)
         sol = robot.ikine_LM(Tep, q0=q0, ilimit=cap, slimit=1, tol=RTB_TOL,
                              joint_limits=False)
-        solve(ik, Chain=chain, Target=pose_st(Tep.A, MM_PER_M),
+        solve(ik, Chain=chain, Target=chain_pose(Tep.A, MM_PER_M),
               Seed=joints_st(robot, q0, MM_PER_M), PositionOnly=False, TolMm=0.005,
               TolDeg=5e-4, ItersPerScan=cap, MaxIters=cap)
         assert ik.Done != ik.Error and not ik.Busy
@@ -164,7 +164,7 @@ def test_redundant_four_axis_chain_position_task(st_module: Any) -> None:
         # the model is in mm: E = |e|^2 / 2 <= 5e-5 means |e| <= 0.01 mm
         sol = robot.ikine_LM(Tep, q0=q0, ilimit=100, slimit=1, tol=5e-5,
                              joint_limits=False, mask=[1, 1, 1, 0, 0, 0])
-        solve(ik, Chain=chain, Target=Tep.A.tolist(), Seed=joints_st(robot, q0),
+        solve(ik, Chain=chain, Target=chain_pose(Tep.A), Seed=joints_st(robot, q0),
               PositionOnly=True, TolMm=0.005)
         if not sol.success:
             continue
@@ -186,7 +186,7 @@ def test_fewer_joints_than_task_rows(st_module: Any) -> None:
         qt[1] = rng.uniform(0.2, 2.8) * rng.choice([-1, 1])  # away from the stretched arm
         q0 = qt + rng.uniform(-0.5, 0.5, 2)
         Tep = robot.fkine(qt)
-        solve(ik, Chain=chain, Target=pose_st(Tep.A, MM_PER_M),
+        solve(ik, Chain=chain, Target=chain_pose(Tep.A, MM_PER_M),
               Seed=joints_st(robot, q0, MM_PER_M), PositionOnly=True)
         assert ik.Done, (ik.ErrorId, ik.ResidualMm)
         T = robot.fkine(joints_rtb(robot, ik.Joints, MM_PER_M)).A
@@ -220,7 +220,7 @@ def test_002_arm_as_dh_table_agrees_with_the_analytic_solver(st_module: Any) -> 
                 ref["Elbow"] + rng.uniform(-10, 10), 0.0, 0.0, 0.0]
         target = np.eye(4)
         target[:3, 3] = [x, y, z]
-        solve(ik, Chain=chain, Target=target.tolist(), Seed=seed, PositionOnly=True,
+        solve(ik, Chain=chain, Target=chain_pose(target), Seed=seed, PositionOnly=True,
               TolMm=1e-3)
         assert ik.Done, (ik.ErrorId, ik.ResidualMm, (x, y, z))
         got = ik.Joints
@@ -267,7 +267,8 @@ def test_multi_scan_protocol(st_module: Any) -> None:
     case = puma_case(0.8)
     chain, target, seed = case.chain, case.target, case.seed
     ik = st_module.new_fb("InverseKinematik_Chain")
-    ik(Execute=True, Chain=chain, Target=target, Seed=seed, ItersPerScan=1, MaxIters=100)
+    ik(Execute=True, Chain=chain, Target=chain_pose(target), Seed=seed, ItersPerScan=1,
+       MaxIters=100)
     scans = 1
     assert ik.Busy and not ik.Done and ik.Iterations == 1
     while ik.Busy:
@@ -304,12 +305,12 @@ def test_the_last_iteration_allowed_is_checked(st_module: Any, per_scan: int) ->
     (before, a cap falling on a scan's last iteration reported 9 without checking)."""
     case = puma_case(0.8)
     ik = st_module.new_fb("InverseKinematik_Chain")
-    solve(ik, Chain=case.chain, Target=case.target, Seed=case.seed)
+    solve(ik, Chain=case.chain, Target=chain_pose(case.target), Seed=case.seed)
     assert ik.Done, ik.ErrorId
     needed, answer = ik.Iterations, ik.Joints
     assert needed > 3
     ik(Execute=False)
-    ik(Execute=True, Chain=case.chain, Target=case.target, Seed=case.seed,
+    ik(Execute=True, Chain=case.chain, Target=chain_pose(case.target), Seed=case.seed,
        ItersPerScan=per_scan, MaxIters=needed)
     scans = 1
     while ik.Busy:
@@ -336,7 +337,7 @@ def test_bad_input_gives_error_and_keeps_last_answer(st_module: Any) -> None:
     case = puma_case(0.3)
     chain, target, seed = case.chain, case.target, case.seed
     ik = st_module.new_fb("InverseKinematik_Chain")
-    good = {"Chain": chain, "Target": target, "Seed": seed, "Lambda": 0.01,
+    good = {"Chain": chain, "Target": chain_pose(target), "Seed": seed, "Lambda": 0.01,
             "ItersPerScan": 1000, "MaxIters": 1000, "TolMm": 1e-3, "TolDeg": 1e-3,
             "PositionOnly": False}
     solve(ik, **good)
@@ -363,9 +364,9 @@ def test_bad_input_gives_error_and_keeps_last_answer(st_module: Any) -> None:
         ({"TolMm": 0.0}, BAD_PARAMETER),
         ({"TolDeg": math.inf}, BAD_PARAMETER),
         ({"Seed": [math.nan] + seed[1:]}, BAD_PARAMETER),
-        ({"Target": np.full((4, 4), math.nan).tolist()}, BAD_TARGET),
-        ({"Target": rotated.tolist()}, BAD_TARGET),
-        ({"Target": far.tolist()}, UNREACHABLE),
+        ({"Target": chain_pose(np.full((4, 4), math.nan))}, BAD_TARGET),
+        ({"Target": chain_pose(rotated)}, BAD_TARGET),
+        ({"Target": chain_pose(far)}, UNREACHABLE),
     ]
     for patch, code in cases:
         solve(ik, **{**good, **patch})
@@ -373,7 +374,7 @@ def test_bad_input_gives_error_and_keeps_last_answer(st_module: Any) -> None:
         _assert_kept(ik, answer)
         assert ik.ResidualMm == 0.0 and ik.Iterations == 0
     # a scaled rotation does not matter for the position task
-    solve(ik, **{**good, "Target": rotated.tolist(), "PositionOnly": True})
+    solve(ik, **{**good, "Target": chain_pose(rotated), "PositionOnly": True})
     assert ik.Done
 
 
@@ -386,13 +387,13 @@ def test_singular_stretched_arm_and_joint_limits(st_module: Any) -> None:
     ik = st_module.new_fb("InverseKinematik_Chain")
     reach = np.eye(4)
     reach[:3, 3] = [300.0, 200.0, 0.0]
-    solve(ik, Chain=chain, Target=reach.tolist(), Seed=[10.0, 60.0, 0, 0, 0, 0],
+    solve(ik, Chain=chain, Target=chain_pose(reach), Seed=[10.0, 60.0, 0, 0, 0, 0],
           PositionOnly=True)
     assert ik.Done
     answer = ik.Joints
     inward = np.eye(4)
     inward[:3, 3] = [250.0, 0.0, 0.0]
-    solve(ik, Chain=chain, Target=inward.tolist(), Seed=[0.0] * 6, PositionOnly=True)
+    solve(ik, Chain=chain, Target=chain_pose(inward), Seed=[0.0] * 6, PositionOnly=True)
     assert ik.ErrorId == SINGULAR
     _assert_kept(ik, answer)
     assert ik.SigmaMin < 0.05
@@ -400,7 +401,7 @@ def test_singular_stretched_arm_and_joint_limits(st_module: Any) -> None:
     tilted = np.eye(4)
     tilted[:3, :3] = sm.SO3.Rx(0.5).A
     tilted[:3, 3] = [300.0, 100.0, 0.0]
-    solve(ik, Chain=chain, Target=tilted.tolist(), Seed=[10.0, 60.0, 0, 0, 0, 0],
+    solve(ik, Chain=chain, Target=chain_pose(tilted), Seed=[10.0, 60.0, 0, 0, 0, 0],
           PositionOnly=False, MaxIters=300)
     assert ik.ErrorId in (NOT_CONVERGED, SINGULAR)
     _assert_kept(ik, answer)
@@ -409,13 +410,13 @@ def test_singular_stretched_arm_and_joint_limits(st_module: Any) -> None:
     limited["Links"][1].update(LowerLimit=0.0, UpperLimit=10.0)
     folded = np.eye(4)
     folded[:3, 3] = [300.0, 200.0, 0.0]   # needs about 90 deg at the elbow
-    solve(ik, Chain=limited, Target=folded.tolist(), Seed=[0.0, 5.0, 0, 0, 0, 0],
+    solve(ik, Chain=limited, Target=chain_pose(folded), Seed=[0.0, 5.0, 0, 0, 0, 0],
           PositionOnly=True)
     assert ik.ErrorId == JOINT_LIMIT
     _assert_kept(ik, answer)
     # inside the limits it converges, and the answer respects them
     ok = np.eye(4)
     ok[:3, 3] = robot.fkine([0.4, math.radians(8.0)]).A[:3, 3] * MM_PER_M
-    solve(ik, Chain=limited, Target=ok.tolist(), Seed=[0.0, 1.0, 0, 0, 0, 0],
+    solve(ik, Chain=limited, Target=chain_pose(ok), Seed=[0.0, 1.0, 0, 0, 0, 0],
           PositionOnly=True)
     assert ik.Done and 0.0 <= ik.Joints[1] <= 10.0

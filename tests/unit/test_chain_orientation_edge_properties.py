@@ -21,7 +21,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from chain_models import MM_PER_M, chain_of, joints_rtb, joints_st, pose_st, rotation_angle_deg
+from chain_models import (
+    MM_PER_M,
+    chain_of,
+    chain_pose,
+    joints_rtb,
+    joints_st,
+    rotation_angle_deg,
+)
 from scipy.spatial.transform import Rotation
 
 from armbench.plant import arm
@@ -113,7 +120,7 @@ def check_round_trip(st_module: Any, puma: Any, qt: np.ndarray, q0: np.ndarray,
     converges from the same seed fails unless `misses_ok`."""
     Tep = puma.fkine(qt).A
     ik = st_module.new_fb("InverseKinematik_Chain")
-    ik(Execute=True, Chain=chain_of(puma, MM_PER_M), Target=pose_st(Tep, MM_PER_M),
+    ik(Execute=True, Chain=chain_of(puma, MM_PER_M), Target=chain_pose(Tep, MM_PER_M),
        Seed=joints_st(puma, q0, MM_PER_M), PositionOnly=position_only, TolMm=TOL_MM,
        TolDeg=TOL_DEG, ItersPerScan=400, MaxIters=400)
     assert not ik.Busy and ik.Done != ik.Error
@@ -201,7 +208,7 @@ def test_chain_ik_bad_inputs_give_documented_codes(st_module: Any, puma: Any,
     T = np.eye(4)
     T[:3, 3] = target
     ik = st_module.new_fb("InverseKinematik_Chain")
-    ik(Execute=True, Chain=chain_of(puma, MM_PER_M), Target=T.tolist(), Seed=seed,
+    ik(Execute=True, Chain=chain_of(puma, MM_PER_M), Target=chain_pose(T), Seed=seed,
        PositionOnly=True, Lambda=lam, TolMm=tol, ItersPerScan=50, MaxIters=50)
     assert finite([*ik.Joints, ik.ResidualMm, ik.ResidualDeg, ik.SigmaMin, ik.Damping])
     assert ik.Error or ik.Done or ik.Busy

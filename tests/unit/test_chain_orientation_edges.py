@@ -15,7 +15,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from chain_models import MM_PER_M, chain_of, joints_rtb, joints_st, pose_st, rotation_angle_deg
+from chain_models import (
+    MM_PER_M,
+    chain_of,
+    chain_pose,
+    joints_rtb,
+    joints_st,
+    rotation_angle_deg,
+)
 from scipy.spatial.transform import Rotation
 
 from armbench.plant import arm
@@ -190,7 +197,7 @@ def test_chain_ik_converges_next_to_puma_singularities(st_module: Any) -> None:
             sol = robot.ikine_LM(Tep, q0=q0, ilimit=100, slimit=1, tol=5e-11,
                                  joint_limits=False)
             ik(Execute=False)
-            ik(Execute=True, Chain=chain, Target=pose_st(Tep.A, MM_PER_M),
+            ik(Execute=True, Chain=chain, Target=chain_pose(Tep.A, MM_PER_M),
                Seed=joints_st(robot, q0, MM_PER_M), PositionOnly=False, TolMm=0.005,
                TolDeg=5e-4, ItersPerScan=1000, MaxIters=1000)
             assert ik.Done != ik.Error and not ik.Busy
@@ -216,7 +223,7 @@ def test_chain_ik_iteration_cap_in_the_singular_band_is_9(st_module: Any) -> Non
     assert np.linalg.svd(robot.jacob0(seed), compute_uv=False)[-1] < 1e-3
     Tep = robot.fkine(np.array([0.6, 0.2, -0.1, 0.9, 0.8, 0.1]))
     ik = st_module.new_fb("InverseKinematik_Chain")
-    ik(Execute=True, Chain=chain_of(robot, MM_PER_M), Target=pose_st(Tep.A, MM_PER_M),
+    ik(Execute=True, Chain=chain_of(robot, MM_PER_M), Target=chain_pose(Tep.A, MM_PER_M),
        Seed=joints_st(robot, seed, MM_PER_M), PositionOnly=False, TolMm=0.005, TolDeg=5e-4,
        ItersPerScan=10, MaxIters=1)
     assert ik.Iterations == 1 and ik.SigmaMin < 0.05 and ik.ResidualMm > 1.0

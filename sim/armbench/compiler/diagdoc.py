@@ -26,7 +26,7 @@ CODESYS family refuse (Targets, below).
 
 
 TARGETS = """
-## Targets (E0214, E0215, E0309, E0411, E0602 and STruC++'s codes)
+## Targets (E0214, E0215, E0309, E0411, E0512, E0602 and STruC++'s codes)
 
 `armbench check --target openplc|openplc-v4|codesys|all` (default `all`; in Python
 `check_files(paths, target=Target.named("codesys"))`) says which compilers the code is for:
@@ -52,6 +52,7 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
 | E0215 `__`, trailing `_` | error | warning | error (`__`), warning (trailing) | error |
 | E0309 TRUNC narrowed | nothing | nothing | warning | warning |
 | E0411 array element as in-out | error | warning | warning | error |
+| E0512 VAR_TEMP in a FUNCTION, or of an array or STRUCT type | error | warning | warning | error |
 | the other STruC++ codes (below) | warning | error | warning | error |
 | E0312 TIME conversion | warning | warning | nothing | error |
 | E0602 CONFIGURATION not Config0, RESOURCE not Res0 | error | warning | warning | error |
@@ -80,6 +81,13 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
   VAR_IN_OUT given an element, and a STRUCT field without an index build. Write
   `Tmp := Arr[I]; Ok := Bump(Val := Tmp); Arr[I] := Tmp;`, or pass the whole array as
   VAR_IN_OUT with the index as an input, or make the callee a FUNCTION_BLOCK.
+- **E0512.** iec2c's grammar has no VAR_TEMP in a FUNCTION ("unexpected temporary located
+  variable(s) declaration in function declaration"), and in a FUNCTION_BLOCK or PROGRAM it
+  initialises a VAR_TEMP of an array or STRUCT type as `__SET_VAR(data__->,M,,)`, which g++
+  refuses ("expected primary-expression"); elementary and enumeration VAR_TEMPs build.
+  STruC++ builds all of them. Write instead: VAR (a FUNCTION's starts afresh at every call;
+  a block's keeps its value, so write it before you read it), or move the computation into a
+  FUNCTION.
 - **E0602, the names.** OpenPLC v3's upload needs `CONFIGURATION Config0` and `RESOURCE Res0`
   (its runtime's build looks for the C files MatIEC names after them); MatIEC compiles any
   names, CODESYS takes any, and the soft PLC runs any, saying
@@ -161,10 +169,25 @@ build in MatIEC, STruC++, RuSTy and CODESYS alike.
 - **E0509 arrays of 3 or more dimensions.** Its runtime's 3-D array has no element access
   and no initialiser, and its deeper arrays (nested 1-D arrays) no `at(i, j, k, l)`:
   declaring, copying and passing them whole builds, a subscript or an initial value fails.
-  Use an array of STRUCTs that each hold a 2-D array (`A[i].M[j, k]`).
+  Use an array of STRUCTs that each hold a 2-D array (`A[i].M[j, k]`), in a FUNCTION
+  (E0511).
 - **E0510 CONSTANT without a value.** "CONSTANT variable must have an initializer", for any
   type, in VAR, VAR_TEMP and VAR_EXTERNAL CONSTANT (which cannot have one). Give the value,
   or use a plain VAR of a code STRUCT that nothing writes (a VAR_EXTERNAL without CONSTANT).
+- **E0511 2-D and 3-D arrays in a block's or program's state.** The v4 editor also uploads
+  the debugger's table `generated_debug.cpp` (STruC++'s compile API writes it; its command
+  line does not), which takes the address of every element of every variable of each
+  PROGRAM instance and of the FB instances inside: a FUNCTION_BLOCK's VAR (CONSTANT too),
+  VAR_INPUT, VAR_OUTPUT and VAR_IN_OUT, a PROGRAM's VAR, VAR_INPUT and VAR_OUTPUT, and the
+  VAR_GLOBALs, through STRUCT fields and array elements. It writes an element of a 2-D or
+  3-D array as `X[i][j]`, which the runtime's `IEC_ARRAY_2D`/`IEC_ARRAY_3D` cannot index
+  (they have `(i, j)` and `at(i, j)`), and g++ fails (4-D and deeper arrays are nested 1-D
+  arrays there and build). Keep matrices in a FUNCTION (its variables are not in the table;
+  neither is VAR_TEMP, but OpenPLC v3 builds no VAR_TEMP of an array or STRUCT type), or
+  hold them as a 1-D array of STRUCTs (`Rows[i].Cols[j]`) or as one 1-D array per row or
+  column; a block's matrix output becomes its columns
+  (`ForwardKinematic5Axis.ToolAxisX`..`ToolAxisZ`). STruC++ 0.6.1 and its newest sources
+  seen (main, August 2026) write the table so.
 """
 
 

@@ -167,11 +167,22 @@ CODES: dict[str, tuple[str, str]] = {
               "drops the initial values of a PROGRAM's arrays, of array VAR_GLOBALs and of array "
               "STRUCT fields, silently (they start at 0)"),
     "E0509": ("array of 3 or more dimensions subscripted or initialised",
-              "use an array of STRUCTs that each hold a 2-D array (A[i].M[j, k]): STruC++'s "
-              "runtime (OpenPLC v4) has no element access and no initialiser for them"),
+              "use an array of STRUCTs that each hold a 2-D array (A[i].M[j, k]; in a FUNCTION: "
+              "E0511): STruC++'s runtime (OpenPLC v4) has no element access and "
+              "no initialiser for them"),
     "E0510": ("CONSTANT without an initial value", "give it an initial value, or make it a plain "
               "VAR that nothing writes (VAR_EXTERNAL: drop CONSTANT): STruC++ (OpenPLC v4) "
               "refuses a constant without one"),
+    "E0511": ("array of 2 or 3 dimensions in a block's or program's state",
+              "keep the matrix in a FUNCTION, or hold it as a 1-D array of STRUCTs (one row "
+              "per element) or as 1-D arrays (one per row or column): the "
+              "debugger's table of STruC++ (OpenPLC v4) cannot address the elements of a "
+              "FUNCTION_BLOCK's VAR, VAR_INPUT, VAR_OUTPUT or VAR_IN_OUT, a PROGRAM's VAR, "
+              "VAR_INPUT or VAR_OUTPUT, or a VAR_GLOBAL that is one or holds one"),
+    "E0512": ("VAR_TEMP OpenPLC v3 does not build", "declare it in VAR: MatIEC has no VAR_TEMP "
+              "in a FUNCTION, and OpenPLC's C build fails on a VAR_TEMP of an array or STRUCT "
+              "type in a FUNCTION_BLOCK or PROGRAM (an error for --target openplc and all, a "
+              "warning for codesys and openplc-v4)"),
     "E0600": ("bad located variable", "match sizes: %IX/%QX BOOL, %IW/%QW/%MW 16-bit, %MD "
               "32-bit, %ML 64-bit; no arrays; only in PROGRAM or CONFIGURATION"),
     "E0601": ("located and plain variables in one VAR block", "split them into two VAR blocks"),

@@ -18,6 +18,12 @@ leaves unresolved is skipped). Each rule was established on the real tools:
   C helper that spells the element `.table1` and g++ fails ("has no member named 'table1'");
   the same call inside a FUNCTION, and an FB instance's VAR_IN_OUT given an element, build and
   run (measured on OpenPLC v3's toolchain). RuSTy takes all of them.
+- E0512: VAR_TEMP that OpenPLC v3 does not build: in a FUNCTION its grammar has none ("unexpected
+  temporary located variable(s) declaration in function declaration"), and of an array or
+  STRUCT type in a FUNCTION_BLOCK or PROGRAM its C initialises it as __SET_VAR(data__->,M,,)
+  and g++ fails ("expected primary-expression"); elementary and enumeration VAR_TEMPs of a
+  FUNCTION_BLOCK or PROGRAM build (measured on OpenPLC v3's toolchain). STruC++ builds all of
+  them.
 - E0602 (the names): OpenPLC v3's upload needs CONFIGURATION Config0 and RESOURCE Res0 (its
   runtime's build names the generated C files after them); MatIEC compiles any names,
   CODESYS takes any, and the bench's soft PLC runs any. An upload rule: upload_severity.
@@ -35,7 +41,7 @@ from .source import SourcePos
 from .strucpp import check_strucpp
 from .symbols import CallTarget, CheckedProgram, PouSym
 from .targets import CODESYS, OPENPLC, OPENPLC_V4, Target
-from .types import STRING, ElemType, Type
+from .types import STRING, ArrayType, ElemType, StructType, Type
 
 _BOTH = frozenset({OPENPLC, CODESYS})
 _CODESYS = frozenset({CODESYS})
@@ -46,6 +52,7 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_reserved_names(prog, diags, target)
     check_trunc_narrowing(prog, diags, target)
     check_element_out_arguments(prog, diags, target)
+    check_var_temp(prog, diags, target)
     check_configuration_names(prog, diags, target)
     check_string_values(prog, diags, target)
     check_c_pragmas(prog, diags, target)
@@ -173,6 +180,32 @@ def check_element_out_arguments(prog: CheckedProgram, diags: Diagnostics,
                                  f"{param.name} of FUNCTION {tgt.pou.name} in {sym.kind} "
                                  f"{sym.name}: OpenPLC's C build fails on it; pass a "
                                  "variable and copy the element in and out")
+
+
+def check_var_temp(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    sev = target.severity(_OPENPLC)
+    if sev is None:
+        return
+    for unit in prog.units:
+        for pou in unit.pous:
+            sym = prog.pous.get(pou.name.upper())
+            for blk in pou.blocks:
+                if blk.kind != A.VAR_TEMP:
+                    continue
+                if pou.kind == "FUNCTION":
+                    diags.report(sev, blk.pos, "E0512", f"VAR_TEMP in FUNCTION {pou.name}: "
+                                 "MatIEC's grammar has none in a FUNCTION: declare the "
+                                 "variables in VAR (a FUNCTION's VAR starts afresh at every "
+                                 "call)")
+                    continue
+                for decl in blk.decls:
+                    var = sym.vars.get(decl.name.upper()) if sym is not None else None
+                    if var is not None and isinstance(var.type, ArrayType | StructType):
+                        kind = "an array" if isinstance(var.type, ArrayType) else "a STRUCT"
+                        diags.report(sev, decl.pos, "E0512", f"VAR_TEMP {decl.name} in "
+                                     f"{pou.kind} {pou.name} is {kind}: OpenPLC's C build "
+                                     "fails on it: declare it in VAR, or compute with it in a "
+                                     "FUNCTION")
 
 
 def _bound_by_reference(callee: PouSym, tgt: CallTarget) -> Iterator[tuple[str, A.Expr, str]]:

@@ -31,6 +31,13 @@ instead.
   fields (they start at 0).
 - E0509 subscripts of, or initial values for, an array of 3 or more dimensions.
 - E0510 a CONSTANT without an initial value (VAR, VAR_TEMP, VAR_EXTERNAL CONSTANT).
+- E0511 an array of 2 or 3 dimensions in what the debugger's table (generated_debug.cpp,
+  which the v4 editor writes with STruC++'s compile API and uploads) lists: the VAR (also
+  CONSTANT), VAR_INPUT, VAR_OUTPUT and VAR_IN_OUT of a FUNCTION_BLOCK, the VAR, VAR_INPUT and
+  VAR_OUTPUT of a PROGRAM, VAR_GLOBALs, also inside STRUCT fields and array elements. The
+  table takes each element's address as X[i][j], and the runtime's 2-D and 3-D arrays
+  have no operator[] (4-D and deeper ones are nested 1-D arrays, which have). VAR_TEMP,
+  VAR_EXTERNAL, FUNCTIONs and a PROGRAM's VAR_IN_OUT are not in the table.
 """
 
 from __future__ import annotations
@@ -46,13 +53,13 @@ from .reserved import matiec_refuses_name, strucpp_reserves
 from .rules import declared_names, is_c_macro
 from .symbols import CheckedProgram
 from .targets import OPENPLC, OPENPLC_V4, Target
-from .types import ArrayType, ElemType
+from .types import ArrayType, ElemType, StructType, Type
 
 # the codes of these rules (the STruC++ cross-check, tests/compiler/test_strucpp_verdicts.py, runs
 # their corpus cases)
 STRUCPP_CODES = frozenset({"E0109", "E0110", "E0216", "E0217", "E0310", "E0311", "E0312",
                            "E0412", "E0413", "E0505", "E0506", "E0507", "E0508", "E0509",
-                           "E0510"})
+                           "E0510", "E0511"})
 _V4 = frozenset({OPENPLC_V4})
 _V3_AND_V4 = frozenset({OPENPLC, OPENPLC_V4})
 _VIA = "STruC++ (OpenPLC v4)"
@@ -67,6 +74,7 @@ def check_strucpp(prog: CheckedProgram, diags: Diagnostics, target: Target) -> N
     check_literals(prog, body, rep)
     check_names(prog, rep)
     check_declarations(prog, rep)
+    check_debug_table(prog, rep)
     check_expressions(prog, body, rep)
     between = target.severity_between(_V3_AND_V4)
     if between is not None:
@@ -317,6 +325,68 @@ def _check_init(prog: CheckedProgram, rep: _Reporter, node: A.Node, ref: A.TypeR
         rep(node, "E0509", f"{what}: initial values for an array of {_dims(prog, ref)} "
             f"dimensions: {_VIA}'s runtime has no such constructor and g++ fails: use an "
             "array of STRUCTs that each hold a 2-D array")
+
+
+# ------------------------------------------------------------------ the debugger's table
+# the VAR blocks whose variables STruC++'s debug table lists (its debug-table-gen.ts): a
+# FUNCTION_BLOCK instance's members, a PROGRAM instance's persistent variables, globals
+_DEBUGGED = {"FUNCTION_BLOCK": frozenset({A.VAR, A.VAR_INPUT, A.VAR_OUTPUT, A.VAR_IN_OUT}),
+             "PROGRAM": frozenset({A.VAR, A.VAR_INPUT, A.VAR_OUTPUT}),
+             "CONFIGURATION": frozenset({A.VAR_GLOBAL}),
+             "RESOURCE": frozenset({A.VAR_GLOBAL})}
+
+
+def multi_dim_part(t: Type, seen: frozenset[str] = frozenset()) -> tuple[str, int] | None:
+    """Where a value of type ``t`` holds an array of 2 or 3 dimensions (the runtime's
+    IEC_ARRAY_2D and IEC_ARRAY_3D; deeper arrays are nested 1-D arrays there, which [i]
+    indexes), through STRUCT fields and array elements (not FB instances: each
+    FUNCTION_BLOCK is checked where it is declared): ('' for ``t`` itself, '.Field',
+    '[..].Field', ...; its dimensions), or None."""
+    if isinstance(t, ArrayType):
+        if len(t.dims) in (2, 3):
+            return "", len(t.dims)
+        inner = multi_dim_part(t.element, seen)
+        return (f"[..]{inner[0]}", inner[1]) if inner else None
+    if isinstance(t, StructType) and t.name.upper() not in seen:
+        for spelling, ft in t.fields.values():
+            inner = multi_dim_part(ft, seen | {t.name.upper()})
+            if inner:
+                return f".{spelling}{inner[0]}", inner[1]
+    return None
+
+
+def check_debug_table(prog: CheckedProgram, rep: _Reporter) -> None:
+    for pou in _user_pous(prog):
+        sym = prog.pous.get(pou.name.upper())
+        kinds = _DEBUGGED.get(pou.kind, frozenset())
+        if sym is None or not kinds:
+            continue
+        for blk in pou.blocks:
+            if blk.kind in kinds:
+                for decl in blk.decls:
+                    var = sym.vars.get(decl.name.upper())
+                    if var is not None:
+                        _check_debugged(rep, decl, var.type, f"{pou.kind} {pou.name}")
+    globals_ = prog.config.globals if prog.config is not None else {}
+    for where, blk in _declarations(prog):
+        if where in ("CONFIGURATION", "RESOURCE"):
+            for decl in blk.decls:
+                var = globals_.get(decl.name.upper())
+                if var is not None:
+                    _check_debugged(rep, decl, var.type, "the CONFIGURATION")
+
+
+def _check_debugged(rep: _Reporter, decl: A.VarDecl, t: Type, holder: str) -> None:
+    part = multi_dim_part(t)
+    if part is None:
+        return
+    path, dims = part
+    what = f"{decl.name}{path}" + (f" (type {t.name})" if t.name and not path else "")
+    rep(decl, "E0511", f"{what} in {holder} is an array of {dims} dimensions: the debugger's "
+        f"table of {_VIA} (generated_debug.cpp, which the v4 editor uploads) indexes its "
+        "elements as X[i][j], which its runtime's arrays of 2 and 3 dimensions cannot "
+        "(g++ fails, and the v4 build with it): keep the matrix in a FUNCTION, or hold it as a "
+        "1-D array of STRUCTs (one row per element) or as 1-D arrays (one per row or column)")
 
 
 # ------------------------------------------------------------------ expressions

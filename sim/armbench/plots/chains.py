@@ -142,6 +142,12 @@ def jacobian_figure(module: Any, out: Path) -> Path:
     return path
 
 
+def chain_pose(T: NDArray[np.float64]) -> dict[str, list[float]]:
+    """InverseKinematik_Chain's Target, a ChainPose: the columns of the 4x4 pose ``T``."""
+    return {"AxisX": T[:3, 0].tolist(), "AxisY": T[:3, 1].tolist(),
+            "AxisZ": T[:3, 2].tolist(), "Origin": T[:3, 3].tolist()}
+
+
 def convergence_runs(module: Any) -> list[tuple[str, list[float]]]:
     """Residual (mm) per iteration of InverseKinematik_Chain on the Puma 560, one scan per
     iteration, for seeds at increasing distance from a solution and near the wrist
@@ -160,7 +166,7 @@ def convergence_runs(module: Any) -> list[tuple[str, list[float]]]:
               [g + 20.0 for g in singular_goal])]
     for name, tgt, seed in cases:
         ik = module.new_fb("InverseKinematik_Chain")
-        ik(Execute=True, Chain=chain, Target=tgt.tolist(), Seed=seed, ItersPerScan=1,
+        ik(Execute=True, Chain=chain, Target=chain_pose(tgt), Seed=seed, ItersPerScan=1,
            MaxIters=200, TolMm=1e-4, TolDeg=1e-4)
         res = [float(ik.ResidualMm)]
         while ik.Busy:
