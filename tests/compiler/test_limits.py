@@ -197,11 +197,16 @@ CYCLES = {
     "nested_inline": ("TYPE\n  Outer2 : STRUCT\n    inner : STRUCT\n      back : Outer2;\n"
                       "    END_STRUCT;\n  END_STRUCT;\nEND_TYPE\n",
                       ["STRUCT Outer2 contains itself through Outer2.inner.back"]),
-    "fb_self": ("FUNCTION_BLOCK Loop1\nVAR\n  me : Loop1;\nEND_VAR\nEND_FUNCTION_BLOCK\n",
+    "fb_self": ("FUNCTION_BLOCK Loop1\nVAR\n  me : Loop1;\n  n : DINT;\nEND_VAR\n  n := 1;\n"
+                "END_FUNCTION_BLOCK\n",
                 ["FUNCTION_BLOCK Loop1 contains itself through Loop1.me"]),
-    "fb_three": ("FUNCTION_BLOCK Fa\nVAR\n  b : Fb;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
-                 "FUNCTION_BLOCK Fb\nVAR\n  c : Fc;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
-                 "FUNCTION_BLOCK Fc\nVAR_OUTPUT\n  a : Fa;\nEND_VAR\nEND_FUNCTION_BLOCK\n",
+    # (each with a statement: MatIEC refuses an FB with none, E0100)
+    "fb_three": ("FUNCTION_BLOCK Fa\nVAR\n  b : Fb;\n  n : DINT;\nEND_VAR\n  n := 1;\n"
+                 "END_FUNCTION_BLOCK\n"
+                 "FUNCTION_BLOCK Fb\nVAR\n  c : Fc;\n  n : DINT;\nEND_VAR\n  n := 1;\n"
+                 "END_FUNCTION_BLOCK\n"
+                 "FUNCTION_BLOCK Fc\nVAR_OUTPUT\n  a : Fa;\n  n : DINT;\nEND_VAR\n  n := 1;\n"
+                 "END_FUNCTION_BLOCK\n",
                  ["FUNCTION_BLOCK Fa contains itself through Fa.b -> Fb.c -> Fc.a"]),
     # two cycles through one group of types: one report, naming the shortest from the first
     "two_cycles": ("TYPE\n  Pa : STRUCT\n    q : Qa;\n  END_STRUCT;\n"
@@ -232,10 +237,10 @@ def test_legal_containment_is_not_a_cycle(tmp_path: Path) -> None:
     several FBs are not cycles."""
     decls = ("TYPE\n  Leaf : STRUCT\n    v : DINT;\n  END_STRUCT;\n"
              "  Pair : STRUCT\n    l : Leaf;\n    rt : Leaf;\n  END_STRUCT;\nEND_TYPE\n"
-             "FUNCTION_BLOCK Holder\nVAR\n  p : Pair;\n  q : ARRAY[0..1] OF Pair;\nEND_VAR\n"
-             "END_FUNCTION_BLOCK\n"
-             "FUNCTION_BLOCK User\nVAR\n  h1 : Holder;\n  h2 : Holder;\nEND_VAR\n"
-             "END_FUNCTION_BLOCK\n")
+             "FUNCTION_BLOCK Holder\nVAR\n  p : Pair;\n  q : ARRAY[0..1] OF Pair;\n"
+             "  n : DINT;\nEND_VAR\n  n := 1;\nEND_FUNCTION_BLOCK\n"
+             "FUNCTION_BLOCK User\nVAR\n  h1 : Holder;\n  h2 : Holder;\n  n : DINT;\n"
+             "END_VAR\n  n := 1;\nEND_FUNCTION_BLOCK\n")
     path = write(tmp_path, "legal", _st(decls, "x : DINT;\n  u : User;", "u();\n  x := 1;"))
     assert codes(path) == []
     m = compile_files([path])
@@ -245,10 +250,11 @@ def test_legal_containment_is_not_a_cycle(tmp_path: Path) -> None:
 
 
 def test_fb_instance_in_struct_is_rejected(tmp_path: Path) -> None:
-    decls = ("FUNCTION_BLOCK Lag\nVAR_INPUT\n  x : REAL;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
+    decls = ("FUNCTION_BLOCK Lag\nVAR_INPUT\n  x : REAL;\nEND_VAR\n  x := x;\n"
+             "END_FUNCTION_BLOCK\n"
              "TYPE\n  Chan : STRUCT\n    f : Lag;\n  END_STRUCT;\nEND_TYPE\n")
     ds = check_files([write(tmp_path, "fbs", _st(decls))])
-    assert [(d.code, d.pos.line) for d in ds] == [("E0504", 8)]  # the field
+    assert [(d.code, d.pos.line) for d in ds] == [("E0504", 9)]  # the field
 
 
 def test_types_nested_too_deep(tmp_path: Path) -> None:

@@ -56,6 +56,7 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
 | the other STruC++ codes (below) | warning | error | warning | error |
 | E0312 TIME conversion | warning | warning | nothing | error |
 | E0602 CONFIGURATION not Config0, RESOURCE not Res0 | error | warning | warning | error |
+| E0100 forms only MatIEC refuses (below) | error | warning | warning | error |
 
 - **E0214.** One list, `sim/armbench/compiler/reserved.py`, with its sources: IEC 61131-3
   (3rd edition) keywords, data types, standard functions and FBs; the keywords of CODESYS's
@@ -88,6 +89,13 @@ Res0) are a warning on stderr, since the soft PLC runs any names.
   STruC++ builds all of them. Write instead: VAR (a FUNCTION's starts afresh at every call;
   a block's keeps its value, so write it before you read it), or move the computation into a
   FUNCTION.
+- **E0100, MatIEC's grammar.** Forms STruC++ and CODESYS take and iec2c fails on: an empty
+  `VAR ... END_VAR` block; CONSTANT on VAR_INPUT, VAR_OUTPUT, VAR_IN_OUT or VAR_TEMP; a lone
+  `;`; a typed or based CASE label (`DINT#5:`, `16#FF:`, `2#101:`, also as a range's bound:
+  MatIEC takes decimal labels, their ranges and enumeration values only, "invalid case
+  element(s)"); a FUNCTION, FUNCTION_BLOCK or PROGRAM with no statement ("no body defined",
+  "unknown error in function block declaration"). Write the label in decimal (`255:`); give
+  every POU a statement. The soft PLC runs all of them (a warning there).
 - **E0602, the names.** OpenPLC v3's upload needs `CONFIGURATION Config0` and `RESOURCE Res0`
   (its runtime's build looks for the C files MatIEC names after them); MatIEC compiles any
   names, CODESYS takes any, and the soft PLC runs any, saying

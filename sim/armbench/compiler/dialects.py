@@ -24,6 +24,9 @@ leaves unresolved is skipped). Each rule was established on the real tools:
   and g++ fails ("expected primary-expression"); elementary and enumeration VAR_TEMPs of a
   FUNCTION_BLOCK or PROGRAM build (measured on OpenPLC v3's toolchain). STruC++ builds all of
   them.
+- E0100 (MatIEC's grammar, measured with iec2c): an empty VAR block, CONSTANT on VAR_INPUT,
+  VAR_OUTPUT, VAR_IN_OUT or VAR_TEMP, an empty statement, a typed or based CASE label
+  (DINT#5:, 16#FF:), a POU with no statement. The soft PLC runs them: upload_severity.
 - E0602 (the names): OpenPLC v3's upload needs CONFIGURATION Config0 and RESOURCE Res0 (its
   runtime's build names the generated C files after them); MatIEC compiles any names,
   CODESYS takes any, and the bench's soft PLC runs any. An upload rule: upload_severity.
@@ -58,6 +61,8 @@ def check_dialects(prog: CheckedProgram, diags: Diagnostics, target: Target) -> 
     check_c_pragmas(prog, diags, target)
     check_block_forms(prog, diags, target)
     check_case_on_bits(prog, diags, target)
+    check_case_label_forms(prog, diags, target)
+    check_empty_bodies(prog, diags, target)
     check_strucpp(prog, diags, target)
 
 
@@ -287,6 +292,47 @@ def check_case_on_bits(prog: CheckedProgram, diags: Diagnostics, target: Target)
                     diags.report(sev, node.subject.pos, "E0303", f"CASE on a {st.name}: MatIEC "
                                  "takes integer and enumerated selectors only: convert it "
                                  f"({st.name}_TO_UINT)")
+
+
+def check_case_label_forms(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """A CASE label (or a bound of a label's range) written typed (DINT#5) or based (16#FF,
+    2#101, 8#17): MatIEC's grammar takes decimal integers, their ranges and enumeration values
+    only (iec_bison.yy: case_list_element is signed_integer | subrange | enumerated_value), so
+    iec2c fails "invalid case element(s) defined after 'OF'" (measured). STruC++ takes the
+    based ones and refuses the typed ones (E0110); the soft PLC runs both."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for sym in prog.pous.values():
+        if sym.node is None:
+            continue
+        for node in A.walk(sym.node.body):
+            if not isinstance(node, A.CaseLabel):
+                continue
+            for bound in (node.low, node.high):
+                lit = bound.operand if isinstance(bound, A.Unary) else bound
+                if (isinstance(lit, A.Literal) and lit.kind == "int" and "#" in lit.text):
+                    form = "typed" if lit.type_prefix is not None else "based"
+                    diags.report(sev, lit.pos, "E0100", f"{form} literal '{lit.text}' as a "
+                                 "CASE label: MatIEC takes decimal labels only (\"invalid case "
+                                 f"element(s)\"): write {lit.value}")
+
+
+def check_empty_bodies(prog: CheckedProgram, diags: Diagnostics, target: Target) -> None:
+    """A FUNCTION, FUNCTION_BLOCK or PROGRAM with no statement (comments only, or nothing
+    between its last END_VAR and its END_): MatIEC refuses all three ("no body defined in
+    function declaration", "unknown error in function block declaration", measured);
+    STruC++ and the soft PLC take them."""
+    sev = target.upload_severity(_OPENPLC)
+    if sev is None:
+        return
+    for unit in prog.units:
+        for pou in unit.pous:
+            if not pou.body and not pou.empty_statements:
+                what = pou.kind.replace("_", " ").lower()
+                diags.report(sev, pou.pos, "E0100", f"{what} {pou.name} has no statement: "
+                             "MatIEC refuses an empty body: give it one (an output assigned "
+                             "its own value will do)")
 
 
 # ------------------------------------------------------------------ C in pragmas

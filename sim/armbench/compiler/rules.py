@@ -51,6 +51,8 @@ def stdlib_variable_names() -> frozenset[str]:
 
 def is_c_macro(name: str) -> bool:
     up = name.upper()
+    if up in _names("openplc-macros.txt"):
+        return True
     errno_like = up.startswith("E") and re.fullmatch(r"E[A-Z]{3,}", up) is not None
     if errno_like:
         return up in _ERRNO_NAMES

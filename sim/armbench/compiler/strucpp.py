@@ -205,12 +205,18 @@ def _decl_literals(decl: A.VarDecl, verbatim: bool) -> Iterator[tuple[A.Literal,
 
 
 def check_literals(prog: CheckedProgram, body: _BodyNodes, rep: _Reporter) -> None:
+    label_literals: set[int] = set()
     for label in body.case_labels:
         for lit in (label.low, label.high):
+            if isinstance(lit, A.Unary):
+                lit = lit.operand
+            if isinstance(lit, A.Literal):
+                label_literals.add(id(lit))
             if isinstance(lit, A.Literal) and lit.type_prefix is not None and lit.kind != "enum":
                 rep(lit, "E0110", f"typed literal '{lit.text}' as a CASE label: {_VIA}'s "
                     "grammar takes untyped ones only (\"Expected END_CASE, found typed "
-                    "literal\"): write it untyped (16#... for an exact value above 2^53)")
+                    "literal\"): write it in decimal, untyped (MatIEC takes no based label "
+                    "either; above 2^53, where STruC++ changes a decimal, compare with IF)")
     for lit, verbatim in _literals(prog, body):
         why = _unlexed(lit)
         if why is not None:
@@ -219,10 +225,13 @@ def check_literals(prog: CheckedProgram, body: _BodyNodes, rep: _Reporter) -> No
         elif lit.kind == "int" and not verbatim:
             written = strucpp_literal_value(lit)
             if written != lit.value:
+                exact = abs(int(lit.value))
+                fix = (f"compare with IF ... = 16#{exact:X} instead (MatIEC takes no typed or "
+                       "based CASE label)" if id(lit) in label_literals else
+                       f"write the exact value typed, LINT#{exact}, or in hexadecimal, "
+                       f"16#{exact:X}")
                 rep(lit, "E0311", f"{_VIA} writes {lit.text} into its C++ as {written} (it "
-                    "parses untyped decimals into a JavaScript double): write the exact "
-                    f"value typed, LINT#{abs(int(lit.value))}, or in hexadecimal, "
-                    f"16#{abs(int(lit.value)):X}")
+                    f"parses untyped decimals into a JavaScript double): {fix}")
 
 
 def _unlexed(lit: A.Literal) -> str | None:
