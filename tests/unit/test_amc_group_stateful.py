@@ -330,3 +330,15 @@ def test_arm3dof_needs_three_axes(group_module: Any) -> None:
     m.scan()
     assert m.fb.GErr[G_SETKIN - 1] and int(m.fb.GErrId[G_SETKIN - 1]) == 8
     assert int(m.fb.GOut["KinModel"]) == 0
+
+
+@pytest.mark.parametrize(("kin", "change", "code"),
+                         [(KIN_ARM3, {"A3": 0.0}, 4), (KIN_ARM3, {"A4": -5.0}, 4),
+                          (KIN_ARM3, {"A1": math.nan}, 4), (2, {}, 8), (-1, {}, 8)])
+def test_set_kin_transform_refuses_bad_models(group_module: Any, kin: int,
+                                              change: dict[str, float], code: int) -> None:
+    m = GroupMachine(group_module)
+    m.kin, m.geo, m.gexec[G_SETKIN - 1] = kin, {**GEO, **change}, True
+    m.scan()
+    assert m.fb.GErr[G_SETKIN - 1] and int(m.fb.GErrId[G_SETKIN - 1]) == code
+    assert int(m.fb.GOut["KinModel"]) == 0 and not m.fb.RdCartValid
