@@ -192,6 +192,10 @@ def test_random_sequences_follow_the_group_model(group_module: Any) -> None:
                 m.kin = rng.choice((0, 1, 1, 1, 2, -1))
                 m.geo = random_geo(rng) if rng.random() < 0.5 else dict(GEO)
 
+        @rule(seed=st.integers(0, 2**32 - 1))
+        def settle_axes(self, seed: int) -> None:
+            settle(self.m, random.Random(seed))
+
         @rule(scans=st.sampled_from([1, 1, 2, 5, 20, 80]), shuffle=st.integers(0, 2**32 - 1))
         def run(self, scans: int, shuffle: int) -> None:
             order = list(range(1, GBLOCKS + 1))
@@ -201,7 +205,7 @@ def test_random_sequences_follow_the_group_model(group_module: Any) -> None:
                 self.m.scan(order if k == 0 else None)
 
     run_state_machine_as_test(PlcopenGroup, settings=settings(
-        max_examples=int(os.environ.get("AMC_GROUP_STATEFUL_EXAMPLES", "15")),
+        max_examples=int(os.environ.get("AMC_GROUP_STATEFUL_EXAMPLES", "10")),
         stateful_step_count=40, deadline=None, derandomize=True, database=None))
     scans = sum(r.fig.scans for r in runs)
     calls = sum(r.fig.calls for r in runs)
@@ -213,6 +217,27 @@ def test_random_sequences_follow_the_group_model(group_module: Any) -> None:
     print(f"\ngroup stateful: {len(runs)} runs, {scans} scans, {calls} group block calls, "
           f"{checks} checks; transitions {seen}")
     assert scans > 500
+    assert seen.get("GroupStandby->GroupErrorStop", 0) > 0, seen
+
+
+def settle(m: GroupMachine, rng: random.Random) -> None:
+    """Every axis powered and moved to 0 deg, to rest (Standstill); then mostly a GroupReset
+    edge in GroupErrorStop, else a GroupEnable edge."""
+    m.vel = [False] * AXES
+    m.power = [True] * AXES
+    m.move = [False] * AXES
+    m.scan()
+    m.move, m.move_pos = [True] * AXES, [0.0] * AXES
+    for _ in range(200):
+        m.scan()
+    if m.model.state == G_ERRORSTOP and rng.random() < 0.8:
+        m.gexec[G_RESET - 1] = False
+        m.scan()
+        m.gexec[G_RESET - 1] = True
+    elif m.model.state != G_STANDBY:
+        m.gexec[G_ENABLE - 1] = False
+        m.scan()
+        m.gexec[G_ENABLE - 1] = True
 
 
 def random_run(m: GroupMachine, rng: random.Random, scans: int) -> None:
@@ -222,22 +247,7 @@ def random_run(m: GroupMachine, rng: random.Random, scans: int) -> None:
     while m.fig.scans < scans:
         r = rng.random()
         if r < 0.08:
-            # calm down: every axis powered and moved home, to rest (Standstill)
-            m.vel = [False] * AXES
-            m.power = [True] * AXES
-            m.move = [False] * AXES
-            m.scan()
-            m.move, m.move_pos = [True] * AXES, [0.0] * AXES
-            for _ in range(200):
-                m.scan()
-            if m.model.state == G_ERRORSTOP and rng.random() < 0.8:
-                m.gexec[G_RESET - 1] = False
-                m.scan()
-                m.gexec[G_RESET - 1] = True
-            elif m.model.state != G_STANDBY:
-                m.gexec[G_ENABLE - 1] = False
-                m.scan()
-                m.gexec[G_ENABLE - 1] = True
+            settle(m, rng)
         elif r < 0.25:
             b = rng.choice((G_ENABLE, G_ENABLE, G_RESET, G_RESET, G_DISABLE, G_SETKIN))
             m.gexec[b - 1] = not m.gexec[b - 1]
