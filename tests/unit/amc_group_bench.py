@@ -2,11 +2,13 @@
 FUNCTION_BLOCK AMCGroupBench with one group of three axes, per axis AMC_Power,
 AMC_MoveAbsolute, AMC_MoveVelocity and AMC_Reset (to bring axes into every state, errors
 included), and the group blocks AMC_GroupEnable, AMC_GroupDisable, AMC_GroupReset,
-AMC_SetKinTransform called in an order given per scan, then AMC_GroupMonitor, the read blocks
-and the three AMC_AxisDrive. The axis states and positions between the axis blocks and the
-group blocks are exposed (MidState, MidPos): what the group blocks and the monitor saw.
+AMC_SetKinTransform, AMC_MoveDirectAbsolute, AMC_GroupHalt, AMC_GroupStop called in an order
+given per scan, then AMC_GroupDrive, the read blocks and the three AMC_AxisDrive. The axis
+states and positions between the axis blocks and the group blocks are exposed (MidState,
+MidPos): what the group blocks and the group drive saw.
 
-Group block numbers: 1 Enable, 2 Disable, 3 Reset, 4 SetKinTransform.
+Group block numbers: 1 Enable, 2 Disable, 3 Reset, 4 SetKinTransform, 5 MoveDirectAbsolute
+(DirPos, DirFactor[1..3], DirBuffer), 6 GroupHalt, 7 GroupStop.
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parents[2]
 AXES = 3
-GBLOCKS = 4
-G_ENABLE, G_DISABLE, G_RESET, G_SETKIN = range(1, 5)
-G_NAMES = ["GroupEnable", "GroupDisable", "GroupReset", "SetKinTransform"]
+GBLOCKS = 7
+G_ENABLE, G_DISABLE, G_RESET, G_SETKIN, G_DIRECT, G_HALT, G_STOP = range(1, 8)
+G_NAMES = ["GroupEnable", "GroupDisable", "GroupReset", "SetKinTransform", "MoveDirect",
+           "GroupHalt", "GroupStop"]
 
 
 def bench_source() -> str:
@@ -55,12 +58,17 @@ FUNCTION_BLOCK AMCGroupBench
     GExec : ARRAY[1..{GBLOCKS}] OF BOOL;
     KinModel : INT;
     Geo : ArmGeometry;
+    DirPos : AMC_GroupVector;
+    DirFactor : ARRAY[1..3] OF LREAL;
+    DirBuffer : INT;
   END_VAR
   VAR_OUTPUT
     GDone : ARRAY[1..{GBLOCKS}] OF BOOL;
     GBusy : ARRAY[1..{GBLOCKS}] OF BOOL;
     GErr : ARRAY[1..{GBLOCKS}] OF BOOL;
     GErrId : ARRAY[1..{GBLOCKS}] OF INT;
+    GActive : ARRAY[1..{GBLOCKS}] OF BOOL;
+    GAborted : ARRAY[1..{GBLOCKS}] OF BOOL;
     MidState : ARRAY[1..{AXES}] OF INT;
     MidPos : ARRAY[1..{AXES}] OF LREAL;
     Flags : ARRAY[1..6] OF BOOL;
@@ -80,7 +88,10 @@ FUNCTION_BLOCK AMCGroupBench
     GDis : AMC_GroupDisable;
     GRst : AMC_GroupReset;
     GKin : AMC_SetKinTransform;
-    GMon : AMC_GroupMonitor;
+    GDir : AMC_MoveDirectAbsolute;
+    GHalt : AMC_GroupHalt;
+    GStop : AMC_GroupStop;
+    GMon : AMC_GroupDrive;
     GStat : AMC_GroupReadStatus;
     GErrRd : AMC_GroupReadError;
     GPos : AMC_GroupReadActualPosition;
@@ -116,9 +127,25 @@ FUNCTION_BLOCK AMCGroupBench
         GKin(AxesGroup := G, Execute := GExec[4], KinModel := KinModel, Geometry := Geo);
         GDone[4] := GKin.Done; GBusy[4] := GKin.Busy; GErr[4] := GKin.Error;
         GErrId[4] := GKin.ErrorID;
+      5:
+        GDir(AxesGroup := G, Axes := Ax, Execute := GExec[5], Position := DirPos,
+             VelFactor := DirFactor[1], AccFactor := DirFactor[2], JerkFactor := DirFactor[3],
+             BufferMode := DirBuffer);
+        GDone[5] := GDir.Done; GBusy[5] := GDir.Busy; GErr[5] := GDir.Error;
+        GErrId[5] := GDir.ErrorID; GActive[5] := GDir.Active; GAborted[5] := GDir.CommandAborted;
+      6:
+        GHalt(AxesGroup := G, Execute := GExec[6], BufferMode := 0);
+        GDone[6] := GHalt.Done; GBusy[6] := GHalt.Busy; GErr[6] := GHalt.Error;
+        GErrId[6] := GHalt.ErrorID; GActive[6] := GHalt.Active;
+        GAborted[6] := GHalt.CommandAborted;
+      7:
+        GStop(AxesGroup := G, Execute := GExec[7]);
+        GDone[7] := GStop.Done; GBusy[7] := GStop.Busy; GErr[7] := GStop.Error;
+        GErrId[7] := GStop.ErrorID; GActive[7] := GStop.Active;
+        GAborted[7] := GStop.CommandAborted;
     END_CASE;
   END_FOR;
-  GMon(AxesGroup := G, Axes := Ax);
+  GMon(AxesGroup := G, Axes := Ax, CycleTime := CycleTime);
   GStat(AxesGroup := G, Enable := TRUE);
   Flags[1] := GStat.GroupDisabled; Flags[2] := GStat.GroupStandby;
   Flags[3] := GStat.GroupMoving; Flags[4] := GStat.GroupHoming;

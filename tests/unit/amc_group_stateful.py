@@ -21,6 +21,9 @@ from plcopen_group_model import (
     GroupModel,
 )
 
+# the group blocks plcopen_group_model.py models (the administrative ones; the moves are
+# checked by the directed tests of test_amc_group_moves.py)
+MODEL_BLOCKS = 4
 CYCLE = 0.01
 CFG: dict[str, Any] = dict(MinPosDeg=-90.0, MaxPosDeg=90.0, MaxVelDeg=120.0, MaxAccDeg=600.0,
                            MaxJerkDeg=6000.0, HomeVelDeg=60.0, HomePosDeg=0.0)
@@ -60,21 +63,24 @@ class GroupMachine:
         self.vel_dir = [1] * AXES
         self.reset = [False] * AXES
         self.gexec = [False] * GBLOCKS
-        self.order = list(range(1, GBLOCKS + 1))
+        self.order = list(range(1, MODEL_BLOCKS + 1))
         self.kin = 0
         self.geo = dict(GEO)
         self.fig = Figures()
-        self.fb(Init=True, Cfg=CFG, AxisCount=axis_count, GOrder=self.order, CycleTime=CYCLE)
+        self.fb(Init=True, Cfg=CFG, AxisCount=axis_count, GOrder=self.padded(), CycleTime=CYCLE)
         self.fb.set(Init=False)
         self.model.monitor([int(s) for s in self.fb.MidState])
         self._check()
+
+    def padded(self) -> list[int]:
+        return self.order + [0] * (GBLOCKS - len(self.order))
 
     def scan(self, order: list[int] | None = None) -> None:
         if order is not None:
             self.order = order
         fb = self.fb
         fb(AxPower=self.power, AxMove=self.move, AxMovePos=self.move_pos, AxVel=self.vel,
-           AxVelDir=self.vel_dir, AxReset=self.reset, GOrder=self.order, GExec=self.gexec,
+           AxVelDir=self.vel_dir, AxReset=self.reset, GOrder=self.padded(), GExec=self.gexec,
            KinModel=self.kin, Geo=self.geo)
         axes = [int(s) for s in fb.MidState]
         before = self.model.state
@@ -172,7 +178,7 @@ def random_run(m: GroupMachine, rng: random.Random, scans: int) -> None:
         elif r < 0.55:
             a = rng.randrange(AXES)
             m.reset[a] = not m.reset[a]
-        order = list(range(1, GBLOCKS + 1))
+        order = list(range(1, MODEL_BLOCKS + 1))
         rng.shuffle(order)
         for k in range(rng.choice((1, 2, 5, 30))):
             m.scan(order if k == 0 else None)

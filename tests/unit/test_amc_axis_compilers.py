@@ -2,10 +2,10 @@
 program using every AMC_* block (power, an absolute move aborted by a velocity move, MC_Stop
 held for a while, homing, a relative move under an override, the read blocks) and a group
 program (three axes in an AMC_GroupAxes array, the 3-DOF model, GroupEnable, an axis error
-stopping the group, GroupReset, the read blocks), each built and run for 260 scans by OpenPLC
-v3's MatIEC (MATIEC_CHECK / run-st.sh) with the same results as the bench compiler, and built
-by STruC++ (OpenPLC v4, STRUCPP) and g++ against its runtime headers. Each skips with the
-reason when its tool is not set."""
+stopping the group, GroupReset, a MoveDirectAbsolute, the read blocks), each built and run
+for 260 scans by OpenPLC v3's MatIEC (MATIEC_CHECK / run-st.sh) with the same results as the
+bench compiler, and built by STruC++ (OpenPLC v4, STRUCPP) and g++ against its runtime
+headers. Each skips with the reason when its tool is not set."""
 
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ FILES = ["ArmAngles.st", "Kinematics.st", "MG996R.st", "MotionJerkTypes.st",
          "MotionJerkRoots.st", "MotionJerkProfile.st",
          "MotionJerkStep1.st", "MotionJerkStep2.st", "MotionJerkVelocity.st",
          "MotionJerkSync.st", "MotionJerkOnline.st", "AMCTypes.st", "AMCAxisDrive.st",
-         "AMCAxisMove.st", "AMCAxisAdmin.st", "AMCGroupTypes.st", "AMCGroupAdmin.st",
-         "AMCGroupMonitor.st"]
+         "AMCAxisMove.st", "AMCAxisAdmin.st", "AMCGroupTypes.st", "AMCGroupDrive.st",
+         "AMCGroupAdmin.st", "AMCGroupMove.st"]
 OUTPUTS = ["SCAN", "POS", "VEL", "STATE", "ABORTSEEN", "DONESEEN", "STOPDONE", "HOMEDONE",
            "RELDONE", "ERRSEEN", "ERRCODE", "INVELSEEN", "HOMED", "STATUSFLAGS"]
 
@@ -184,8 +184,8 @@ def test_strucpp_builds_the_layer(tmp_path: Path) -> None:
 
 # ------------------------------------------------------------------------ the group layer
 GROUP_OUTPUTS = ["SCAN", "GSTATE", "ERRSTOPSEEN", "GROUPERR", "ERRAXIS", "AXISERR", "RESETDONE",
-                 "ENABLEDONE", "KINDONE", "ENABLEREFUSED", "CARTX", "CARTY", "CARTZ", "JOINT2",
-                 "FLAGS"]
+                 "ENABLEDONE", "KINDONE", "ENABLEREFUSED", "CARTX", "CARTY", "CARTZ", "JOINT1",
+                 "JOINT2", "JOINT3", "FLAGS", "DIRDONE", "DIRSCANS"]
 
 GROUP_PROGRAM = """
 PROGRAM AMCGroupMain
@@ -204,7 +204,13 @@ PROGRAM AMCGroupMain
     GEn : AMC_GroupEnable;
     Dis : AMC_GroupDisable;
     Rst : AMC_GroupReset;
-    Mon : AMC_GroupMonitor;
+    GDir : AMC_MoveDirectAbsolute;
+    Tgt : AMC_GroupVector;
+    DirDone : BOOL;
+    DirScans : INT;
+    Joint1 : LREAL;
+    Joint3 : LREAL;
+    Mon : AMC_GroupDrive;
     Stat : AMC_GroupReadStatus;
     RErr : AMC_GroupReadError;
     RPos : AMC_GroupReadActualPosition;
@@ -231,6 +237,9 @@ PROGRAM AMCGroupMain
     Axs[3].MinPosDeg := 0.0;
     Axs[3].MaxPosDeg := 180.0;
     Axs[3].SetPosDeg := 90.0;
+    Tgt[1] := 10.0;
+    Tgt[2] := 20.0;
+    Tgt[3] := 100.0;
   END_IF;
   Scan := Scan + 1;
   Pw1(Axis := Axs[1], Enable := TRUE);
@@ -242,9 +251,15 @@ PROGRAM AMCGroupMain
       Deceleration := 300.0, Jerk := 3000.0, Direction := 1, BufferMode := 0);
   Kin(AxesGroup := Grp, Execute := Scan >= 2, KinModel := 1, Geometry := Geo);
   GEn(AxesGroup := Grp, Axes := Axs, Execute := (Scan >= 4) AND (Scan < 60) OR (Scan >= 62));
-  Rst(AxesGroup := Grp, Axes := Axs, Execute := Scan >= 200);
+  Rst(AxesGroup := Grp, Axes := Axs, Execute := Scan >= 175);
+  GDir(AxesGroup := Grp, Axes := Axs, Execute := Scan >= 185, Position := Tgt,
+       VelFactor := 1.0, AccFactor := 1.0, JerkFactor := 1.0, BufferMode := 0);
+  IF GDir.Busy THEN
+    DirScans := DirScans + 1;
+  END_IF;
+  DirDone := DirDone OR GDir.Done;
   Dis(AxesGroup := Grp, Execute := Scan >= 255);
-  Mon(AxesGroup := Grp, Axes := Axs);
+  Mon(AxesGroup := Grp, Axes := Axs, CycleTime := 0.02);
   Stat(AxesGroup := Grp, Enable := TRUE);
   RErr(AxesGroup := Grp, Axes := Axs, Enable := TRUE);
   RPos(AxesGroup := Grp, Enable := TRUE);
@@ -267,7 +282,9 @@ PROGRAM AMCGroupMain
   CartX := RPos.Position[1];
   CartY := RPos.Position[2];
   CartZ := RPos.Position[3];
+  Joint1 := RPos.JointPosition[1];
   Joint2 := RPos.JointPosition[2];
+  Joint3 := RPos.JointPosition[3];
   Flags := 0;
   IF Stat.GroupDisabled THEN
     Flags := Flags + 1;
@@ -310,16 +327,19 @@ def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) ->
     """Independent of any compiler: the group enabled with the 3-DOF model, the enable refused
     while axis 1 moves (AxisNotReady 57), axis 2 running into its range end stops the group
     (GroupAxisError 58, axis 2, JointLimit 10), GroupReset brings it back to GroupStandby, and
-    the Cartesian position is the closed-form FK of the final joints."""
+    the Cartesian position is the closed-form FK of the joints, and a MoveDirectAbsolute
+    to (10, 20, 100) deg arrives."""
     import math
     got = _group_bench(_group_source(tmp_path), 250)
     assert got["KINDONE"] == 1 and got["ENABLEDONE"] == 1 and got["ENABLEREFUSED"] == 57
     assert got["ERRSTOPSEEN"] == 1 and got["GROUPERR"] == 58 and got["ERRAXIS"] == 2
     assert got["AXISERR"] == 10 and got["RESETDONE"] == 1
     assert got["GSTATE"] == 1 and got["FLAGS"] == 10
-    q2 = got["JOINT2"]
-    assert 0.0 < q2 < 90.0
-    t1, t2, t3 = math.radians(30.0), math.radians(q2), math.radians(90.0 - 180.0)
+    assert got["DIRDONE"] == 1 and got["DIRSCANS"] > 5
+    assert (got["JOINT1"], got["JOINT2"], got["JOINT3"]) == pytest.approx((10.0, 20.0, 100.0),
+                                                                          abs=1e-9)
+    t1, t2, t3 = (math.radians(got["JOINT1"]), math.radians(got["JOINT2"]),
+                  math.radians(got["JOINT3"] - 180.0))
     reach = 20.0 + 120.0 * math.cos(t2) + 130.0 * math.cos(t2 + t3)
     assert got["CARTX"] == pytest.approx(reach * math.cos(t1), abs=2e-3)
     assert got["CARTY"] == pytest.approx(reach * math.sin(t1), abs=2e-3)

@@ -29,10 +29,9 @@ from amc_group_bench import (  # noqa: E402
     G_ENABLE,
     G_RESET,
     G_SETKIN,
-    GBLOCKS,
     compile_group_bench,
 )
-from amc_group_stateful import GEO, GroupMachine, random_geo, random_run, settle  # noqa: E402
+from amc_group_stateful import GEO, MODEL_BLOCKS, GroupMachine, random_geo, random_run, settle  # noqa: E402
 from hypothesis import settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from hypothesis.stateful import RuleBasedStateMachine, rule, run_state_machine_as_test  # noqa: E402
@@ -70,7 +69,7 @@ def test_random_sequences_follow_the_group_model(group_module: Any) -> None:
             else:
                 m.reset[axis] = not m.reset[axis]
 
-        @rule(block=st.integers(1, GBLOCKS), seed=st.integers(0, 2**32 - 1))
+        @rule(block=st.integers(1, MODEL_BLOCKS), seed=st.integers(0, 2**32 - 1))
         def group_block(self, block: int, seed: int) -> None:
             rng = random.Random(seed)
             m = self.m
@@ -85,7 +84,7 @@ def test_random_sequences_follow_the_group_model(group_module: Any) -> None:
 
         @rule(scans=st.sampled_from([1, 1, 2, 5, 20, 80]), shuffle=st.integers(0, 2**32 - 1))
         def run(self, scans: int, shuffle: int) -> None:
-            order = list(range(1, GBLOCKS + 1))
+            order = list(range(1, MODEL_BLOCKS + 1))
             if shuffle % 2 == 0:
                 random.Random(shuffle).shuffle(order)
             for k in range(scans):
