@@ -196,7 +196,12 @@ def test_an_axis_leaving_mid_move_stops_the_group(group_module: Any, how: str) -
         b.power[1] = False
     else:
         b.move[1] = True
+    v_before = [a["SetVelDeg"] for a in b.axes()]
     b.scan(AxMovePos=[0.0, 0.0, 0.0])
+    # no jump in velocity, also not on the axis a single-axis command took over
+    for k, a in enumerate(b.axes()):
+        if how != "power off" or k != 1:
+            assert abs(a["SetVelDeg"] - v_before[k]) <= 600.0 * CYCLE + 1e-9, (k, v_before, a)
     assert int(b.fb.GOut["State"]) == ERRORSTOP
     assert (int(b.fb.RdGroupErr), int(b.fb.RdErrAxis)) == (58, 2)
     b.scan()
