@@ -8,7 +8,8 @@ states and positions between the axis blocks and the group blocks are exposed (M
 MidPos): what the group blocks and the group drive saw.
 
 Group block numbers: 1 Enable, 2 Disable, 3 Reset, 4 SetKinTransform, 5 MoveDirectAbsolute
-(DirPos, DirFactor[1..3], DirBuffer), 6 GroupHalt, 7 GroupStop.
+(DirPos, DirFactor[1..3], DirBuffer), 6 GroupHalt, 7 GroupStop, 8 MoveLinearAbsolute (LinPos,
+LinLim[1..3] = path velocity, acceleration, jerk, DirBuffer).
 """
 
 from __future__ import annotations
@@ -18,10 +19,10 @@ from typing import Any
 
 REPO = Path(__file__).resolve().parents[2]
 AXES = 3
-GBLOCKS = 7
-G_ENABLE, G_DISABLE, G_RESET, G_SETKIN, G_DIRECT, G_HALT, G_STOP = range(1, 8)
+GBLOCKS = 8
+G_ENABLE, G_DISABLE, G_RESET, G_SETKIN, G_DIRECT, G_HALT, G_STOP, G_LINEAR = range(1, 9)
 G_NAMES = ["GroupEnable", "GroupDisable", "GroupReset", "SetKinTransform", "MoveDirect",
-           "GroupHalt", "GroupStop"]
+           "GroupHalt", "GroupStop", "MoveLinear"]
 
 
 def bench_source() -> str:
@@ -61,6 +62,8 @@ FUNCTION_BLOCK AMCGroupBench
     DirPos : AMC_GroupVector;
     DirFactor : ARRAY[1..3] OF LREAL;
     DirBuffer : INT;
+    LinPos : AMC_GroupVector;
+    LinLim : ARRAY[1..3] OF LREAL;
   END_VAR
   VAR_OUTPUT
     GDone : ARRAY[1..{GBLOCKS}] OF BOOL;
@@ -91,6 +94,7 @@ FUNCTION_BLOCK AMCGroupBench
     GDir : AMC_MoveDirectAbsolute;
     GHalt : AMC_GroupHalt;
     GStop : AMC_GroupStop;
+    GLin : AMC_MoveLinearAbsolute;
     GMon : AMC_GroupDrive;
     GStat : AMC_GroupReadStatus;
     GErrRd : AMC_GroupReadError;
@@ -143,6 +147,13 @@ FUNCTION_BLOCK AMCGroupBench
         GDone[7] := GStop.Done; GBusy[7] := GStop.Busy; GErr[7] := GStop.Error;
         GErrId[7] := GStop.ErrorID; GActive[7] := GStop.Active;
         GAborted[7] := GStop.CommandAborted;
+      8:
+        GLin(AxesGroup := G, Axes := Ax, Execute := GExec[8], Position := LinPos,
+             Velocity := LinLim[1], Acceleration := LinLim[2], Jerk := LinLim[3],
+             BufferMode := DirBuffer);
+        GDone[8] := GLin.Done; GBusy[8] := GLin.Busy; GErr[8] := GLin.Error;
+        GErrId[8] := GLin.ErrorID; GActive[8] := GLin.Active;
+        GAborted[8] := GLin.CommandAborted;
     END_CASE;
   END_FOR;
   GMon(AxesGroup := G, Axes := Ax, CycleTime := CycleTime);
