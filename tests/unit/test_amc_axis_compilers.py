@@ -2,10 +2,10 @@
 program using every AMC_* block (power, an absolute move aborted by a velocity move, MC_Stop
 held for a while, homing, a relative move under an override, the read blocks) and a group
 program (three axes in an AMC_GroupAxes array, the 3-DOF model, GroupEnable, an axis error
-stopping the group, GroupReset, a MoveDirectAbsolute, the read blocks), each built and run
-for 260 scans by OpenPLC v3's MatIEC (MATIEC_CHECK / run-st.sh) with the same results as the
-bench compiler, and built by STruC++ (OpenPLC v4, STRUCPP) and g++ against its runtime
-headers. Each skips with the reason when its tool is not set."""
+stopping the group, GroupReset, MoveDirectAbsolute, MoveLinearAbsolute, the read blocks),
+each built and run for 260 scans by OpenPLC v3's MatIEC (MATIEC_CHECK / run-st.sh) with the
+same results as the bench compiler, and built by STruC++ (OpenPLC v4, STRUCPP) and g++
+against its runtime headers. Each skips with the reason when its tool is not set."""
 
 from __future__ import annotations
 
@@ -185,7 +185,7 @@ def test_strucpp_builds_the_layer(tmp_path: Path) -> None:
 # ------------------------------------------------------------------------ the group layer
 GROUP_OUTPUTS = ["SCAN", "GSTATE", "ERRSTOPSEEN", "GROUPERR", "ERRAXIS", "AXISERR", "RESETDONE",
                  "ENABLEDONE", "KINDONE", "ENABLEREFUSED", "CARTX", "CARTY", "CARTZ", "JOINT1",
-                 "JOINT2", "JOINT3", "FLAGS", "DIRDONE", "DIRSCANS"]
+                 "JOINT2", "JOINT3", "FLAGS", "DIRDONE", "DIRSCANS", "LINDONE", "LINERR"]
 
 GROUP_PROGRAM = """
 PROGRAM AMCGroupMain
@@ -205,6 +205,10 @@ PROGRAM AMCGroupMain
     Dis : AMC_GroupDisable;
     Rst : AMC_GroupReset;
     GDir : AMC_MoveDirectAbsolute;
+    GLin : AMC_MoveLinearAbsolute;
+    LinTgt : AMC_GroupVector;
+    LinDone : BOOL;
+    LinErr : INT;
     Tgt : AMC_GroupVector;
     DirDone : BOOL;
     DirScans : INT;
@@ -258,6 +262,17 @@ PROGRAM AMCGroupMain
     DirScans := DirScans + 1;
   END_IF;
   DirDone := DirDone OR GDir.Done;
+  IF Scan = 229 THEN   (* the group at rest after the direct move *)
+    LinTgt := Grp.SetCart;
+    LinTgt[2] := LinTgt[2] + 20.0;
+    LinTgt[3] := LinTgt[3] - 10.0;
+  END_IF;
+  GLin(AxesGroup := Grp, Axes := Axs, Execute := Scan >= 230, Position := LinTgt,
+       Velocity := 100.0, Acceleration := 1000.0, Jerk := 20000.0, BufferMode := 0);
+  LinDone := LinDone OR GLin.Done;
+  IF GLin.Error THEN
+    LinErr := GLin.ErrorID;
+  END_IF;
   Dis(AxesGroup := Grp, Execute := Scan >= 255);
   Mon(AxesGroup := Grp, Axes := Axs, CycleTime := 0.02);
   Stat(AxesGroup := Grp, Enable := TRUE);
@@ -328,7 +343,7 @@ def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) ->
     while axis 1 moves (AxisNotReady 57), axis 2 running into its range end stops the group
     (GroupAxisError 58, axis 2, JointLimit 10), GroupReset brings it back to GroupStandby, and
     the Cartesian position is the closed-form FK of the joints, and a MoveDirectAbsolute
-    to (10, 20, 100) deg arrives."""
+    to (10, 20, 100) deg and a MoveLinearAbsolute from there by (0, 20, -10) mm arrive."""
     import math
     got = _group_bench(_group_source(tmp_path), 250)
     assert got["KINDONE"] == 1 and got["ENABLEDONE"] == 1 and got["ENABLEREFUSED"] == 57
@@ -336,8 +351,7 @@ def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) ->
     assert got["AXISERR"] == 10 and got["RESETDONE"] == 1
     assert got["GSTATE"] == 1 and got["FLAGS"] == 10
     assert got["DIRDONE"] == 1 and got["DIRSCANS"] > 5
-    assert (got["JOINT1"], got["JOINT2"], got["JOINT3"]) == pytest.approx((10.0, 20.0, 100.0),
-                                                                          abs=1e-9)
+    assert got["LINDONE"] == 1 and got["LINERR"] == 0
     t1, t2, t3 = (math.radians(got["JOINT1"]), math.radians(got["JOINT2"]),
                   math.radians(got["JOINT3"] - 180.0))
     reach = 20.0 + 120.0 * math.cos(t2) + 130.0 * math.cos(t2 + t3)
@@ -345,6 +359,12 @@ def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) ->
     assert got["CARTY"] == pytest.approx(reach * math.sin(t1), abs=2e-3)
     assert got["CARTZ"] == pytest.approx(100.0 + 120.0 * math.sin(t2)
                                          + 130.0 * math.sin(t2 + t3), abs=2e-3)
+    # the line ended where it should: FK(10, 20, 100 deg) + (0, 20, -10) mm
+    t1, t2, t3 = math.radians(10.0), math.radians(20.0), math.radians(100.0 - 180.0)
+    reach = 20.0 + 120.0 * math.cos(t2) + 130.0 * math.cos(t2 + t3)
+    want = (reach * math.cos(t1), reach * math.sin(t1) + 20.0,
+            100.0 + 120.0 * math.sin(t2) + 130.0 * math.sin(t2 + t3) - 10.0)
+    assert (got["CARTX"], got["CARTY"], got["CARTZ"]) == pytest.approx(want, abs=1e-2)
     end = _group_bench(_group_source(tmp_path), 260)
     assert end["GSTATE"] == 0 and end["FLAGS"] == 1
 
