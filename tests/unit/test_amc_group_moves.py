@@ -227,11 +227,11 @@ def test_an_axis_leaving_mid_move_stops_the_group(group_module: Any, how: str) -
 
 def test_refusals(group_module: Any) -> None:
     b = Bench(group_module)
-    for pos, fac, buf, code in [([95.0, 0, 0], [1.0, 1.0, 1.0], 0, 10),
-                                ([0, 0, math.nan], [1.0, 1.0, 1.0], 0, 8),
-                                ([0, 0, 0], [0.0, 1.0, 1.0], 0, 8),
-                                ([0, 0, 0], [1.0, 1.5, 1.0], 0, 8),
-                                ([0, 0, 0], [1.0, 1.0, 1.0], 1, 8)]:
+    cases: list[tuple[list[float], list[float], int, int]] = [
+        ([95.0, 0.0, 0.0], [1.0, 1.0, 1.0], 0, 10), ([0.0, 0.0, math.nan], [1.0, 1.0, 1.0], 0, 8),
+        ([0.0, 0.0, 0.0], [0.0, 1.0, 1.0], 0, 8), ([0.0, 0.0, 0.0], [1.0, 1.5, 1.0], 0, 8),
+        ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 1, 8)]
+    for pos, fac, buf, code in cases:
         b.edge(G_DIRECT, DirPos=[*pos, 0, 0, 0], DirFactor=fac, DirBuffer=buf)
         assert b.fb.GErr[G_DIRECT - 1] and int(b.fb.GErrId[G_DIRECT - 1]) == code
         assert int(b.fb.GOut["State"]) == STANDBY
