@@ -392,3 +392,18 @@ def test_follow5_never_leaves_its_branch(st_module: Any, q: tuple[float, ...], f
         assert (now[2] <= 180.0) == (joints[2] <= 180.0)
         f2, t2 = fk5(now[:5], G, TOOL_MM)
         assert np.linalg.norm((f2 if flange else t2)[:3, 3] - anchor) < 0.05
+
+
+@examples(200)
+@given(axis=st.tuples(real(), real(), real()), angle=real(-1e6, 1e6))
+def test_quat_matrix_column_is_quat_to_matrix(st_module: Any,
+                                              axis: tuple[float, float, float],
+                                              angle: float) -> None:
+    """QuatMatrixColumn (a column, for a block that keeps no 2-D array) is QuatToMatrix's
+    column to the bit."""
+    q = st_module.call("QuatFromAxisAngle", AxisX=axis[0], AxisY=axis[1], AxisZ=axis[2],
+                       AngleDeg=angle)
+    M = st_module.call("QuatToMatrix", Quat=q)
+    for col in (1, 2, 3):
+        got = st_module.call("QuatMatrixColumn", Quat=q, Column=col)
+        assert got == [M[row][col - 1] for row in range(3)]

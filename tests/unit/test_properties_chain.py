@@ -629,3 +629,107 @@ def test_five_axis_geometry_check(st_module: Any, a: list[float], tool: float) -
           and arm_geo["A3"] > 0 and arm_geo["A4"] > 0 and math.isfinite(tool)
           and 0.0 <= tool <= 1e6)
     assert code == (0 if ok else BAD_GEOMETRY)
+
+
+# --- The forms a block keeps (no 2-D array in its state: OpenPLC v4's debugger table) --------
+
+finite_f32 = st.floats(-1e6, 1e6, allow_nan=False, width=32)
+
+
+@examples(100)
+@given(m=st.lists(finite_f32, min_size=16, max_size=16), canonical=st.booleans())
+def test_chain_pose_round_trip(st_module: Any, m: list[float], canonical: bool) -> None:
+    """ChainPoseOf keeps a Mat4's columns, reports whether the bottom row is 0 0 0 1;
+    ChainPoseMatrix gives the matrix back with that row; ChainPoseEntry reads every entry."""
+    mat = np.array(m, dtype=float).reshape(4, 4)
+    if canonical:
+        mat[3] = [0.0, 0.0, 0.0, 1.0]
+    pose = {"AxisX": [0.0] * 3, "AxisY": [0.0] * 3, "AxisZ": [0.0] * 3, "Origin": [0.0] * 3}
+    ok, outs = st_module.call_full("ChainPoseOf", Matrix=mat.tolist(), Pose=pose)
+    assert ok == bool((mat[3] == [0.0, 0.0, 0.0, 1.0]).all())
+    got = outs["Pose"]
+    for col, name in enumerate(("AxisX", "AxisY", "AxisZ", "Origin")):
+        assert got[name] == mat[:3, col].tolist()
+    back = np.array(st_module.call("ChainPoseMatrix", Pose=got))
+    want = mat.copy()
+    want[3] = [0.0, 0.0, 0.0, 1.0]
+    assert (back == want).all()
+    for r in range(1, 5):
+        for c in range(1, 5):
+            assert st_module.call("ChainPoseEntry", Pose=got, Row=r, Col=c) == want[r - 1, c - 1]
+
+
+@examples(60)
+@given(jac=st.lists(finite_f32, min_size=36, max_size=36),
+       err=st.lists(finite_f32, min_size=6, max_size=6), extra=st.lists(finite_f32, min_size=3,
+                                                                       max_size=3))
+def test_chain_evaluation_keep_and_restore(st_module: Any, jac: list[float], err: list[float],
+                                           extra: list[float]) -> None:
+    """ChainEvaluationKeep then ChainEvaluationRestore give the evaluation back to the bit."""
+    ev = {"Jac": np.array(jac).reshape(6, 6).tolist(), "Err": err, "Energy": extra[0],
+          "ResidualMm": extra[1], "ResidualDeg": extra[2]}
+    kept = {"JacRows": [{"Cols": [0.0] * 6} for _ in range(6)], "Err": [0.0] * 6,
+            "Energy": 0.0, "ResidualMm": 0.0, "ResidualDeg": 0.0}
+    energy, outs = st_module.call_full("ChainEvaluationKeep", Eval=ev, Kept=kept)
+    assert [row["Cols"] for row in outs["Kept"]["JacRows"]] == ev["Jac"]
+    assert energy == extra[0]
+    blank = {"Jac": [[0.0] * 6 for _ in range(6)], "Err": [0.0] * 6, "Energy": 0.0,
+             "ResidualMm": 0.0, "ResidualDeg": 0.0}
+    energy, back = st_module.call_full("ChainEvaluationRestore", Kept=outs["Kept"], Eval=blank)
+    assert energy == extra[0] and back["Eval"] == ev
+
+
+@examples(40)
+@given(q=st.lists(st.floats(-170.0, 170.0), min_size=6, max_size=6),
+       qt=st.lists(st.floats(-170.0, 170.0), min_size=6, max_size=6),
+       rows=st.sampled_from([3, 6]))
+def test_chain_evaluate_kept_is_chain_evaluate(st_module: Any, puma: Any, q: list[float],
+                                               qt: list[float], rows: int) -> None:
+    """ChainEvaluateKept (target as a ChainPose, result by rows) computes ChainEvaluate's
+    values to the bit."""
+    chain = chain_of(puma, MM_PER_M)
+    target = puma.fkine(np.radians(qt)).A
+    target[:3, 3] *= MM_PER_M
+    target = target.astype(np.float32).astype(float)
+    scale = f32(st_module.call("ChainScale", Chain=chain))
+    joints = [f32(v) for v in q]
+    res = {"Jac": np.zeros((6, 6)).tolist(), "Err": [0.0] * 6, "Energy": 0.0,
+           "ResidualMm": 0.0, "ResidualDeg": 0.0}
+    energy, outs = st_module.call_full("ChainEvaluate", Chain=chain, TaskRows=rows,
+                                       Scale=scale, Joints=joints, Target=target.tolist(),
+                                       Result=res)
+    pose = {"AxisX": target[:3, 0].tolist(), "AxisY": target[:3, 1].tolist(),
+            "AxisZ": target[:3, 2].tolist(), "Origin": target[:3, 3].tolist()}
+    kept = {"JacRows": [{"Cols": [0.0] * 6} for _ in range(6)], "Err": [0.0] * 6,
+            "Energy": 0.0, "ResidualMm": 0.0, "ResidualDeg": 0.0}
+    energy_k, outs_k = st_module.call_full("ChainEvaluateKept", Chain=chain, TaskRows=rows,
+                                           Scale=scale, Joints=joints, Target=pose,
+                                           Result=kept)
+    r, k = outs["Result"], outs_k["Result"]
+    assert energy_k == energy
+    assert [row["Cols"] for row in k["JacRows"]] == r["Jac"] and k["Err"] == r["Err"]
+    assert (k["Energy"], k["ResidualMm"], k["ResidualDeg"]) == (
+        r["Energy"], r["ResidualMm"], r["ResidualDeg"])
+
+
+@examples(60)
+@given(rows=st.integers(1, 6), cols=st.integers(1, 6), seed=st.integers(0, 2**31 - 1),
+       lam=st.floats(1e-3, 10.0), cap=st.floats(0.1, 10.0))
+def test_chain_damped_step_rows_is_chain_damped_step(st_module: Any, rows: int, cols: int,
+                                                     seed: int, lam: float,
+                                                     cap: float) -> None:
+    """ChainDampedStepRows (the Jacobian by rows) gives ChainDampedStep's step to the bit."""
+    rng = np.random.default_rng(seed)
+    jm, ev = np.zeros((6, 6)), np.zeros(6)
+    jm[:rows, :cols] = rng.normal(size=(rows, cols)).astype(np.float32)
+    ev[:rows] = rng.normal(size=rows).astype(np.float32)
+    args = {"TaskRows": rows, "JointCount": cols, "Lambda": f32(lam), "Band": 0.5,
+            "LambdaMax": 0.1, "ExtraSq": 0.0, "Mu": 1.0, "StepCap": f32(cap),
+            "BaseDampSq": -1.0}
+    result = {"Dq": [0.0] * 6, "SigmaMin": 0.0, "DampingSq": 0.0, "Ok": False}
+    ok, outs = st_module.call_full("ChainDampedStep", **args, Jac=jm.tolist(),
+                                   Err=ev.tolist(), Probe=[0.0] * 6, Result=dict(result))
+    ok_r, outs_r = st_module.call_full("ChainDampedStepRows", **args, JacRows=[{"Cols": row} for row in jm.tolist()],
+                                       Err=ev.tolist(), Probe=[0.0] * 6, Result=dict(result))
+    assert ok_r == ok and outs_r["Result"] == outs["Result"]
+    assert outs_r["Probe"] == outs["Probe"]

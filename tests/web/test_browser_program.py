@@ -25,8 +25,9 @@ from armbench.web.variables import program_variables
 
 
 def wave(scans: int) -> float:
-    """The program's Wave for a scan count, in float32 as the PLC computes it."""
-    arg = np.float32(np.float32(scans) * np.float32(0.1))
+    """The program's Wave for a scan count as the PLC computes it: the REAL literal 0.1 makes
+    C compute the product in double (MatIEC's C), SIN takes it rounded to float32."""
+    arg = np.float32(float(np.float32(scans)) * 0.1)
     return float(np.float32(math.sin(float(arg))))
 
 
