@@ -729,7 +729,8 @@ def test_chain_damped_step_rows_is_chain_damped_step(st_module: Any, rows: int, 
     result = {"Dq": [0.0] * 6, "SigmaMin": 0.0, "DampingSq": 0.0, "Ok": False}
     ok, outs = st_module.call_full("ChainDampedStep", **args, Jac=jm.tolist(),
                                    Err=ev.tolist(), Probe=[0.0] * 6, Result=dict(result))
-    ok_r, outs_r = st_module.call_full("ChainDampedStepRows", **args, JacRows=[{"Cols": row} for row in jm.tolist()],
+    rows_in = [{"Cols": row} for row in jm.tolist()]
+    ok_r, outs_r = st_module.call_full("ChainDampedStepRows", **args, JacRows=rows_in,
                                        Err=ev.tolist(), Probe=[0.0] * 6, Result=dict(result))
     assert ok_r == ok and outs_r["Result"] == outs["Result"]
     assert outs_r["Probe"] == outs["Probe"]
