@@ -139,10 +139,11 @@ def test_a_read_on_a_connection_nobody_serves_is_sent_again(
 
 
 def test_a_write_is_sent_once_and_only_on_a_connection_that_answered(
-        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int]) -> None:
+        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int],
+        plc_flavor: str) -> None:
     proxy = proxy_for(unserved=frozenset({0}))
     with PlcClient(*plc_address) as direct:
-        ctl = ArmControllerClient(direct)
+        ctl = ArmControllerClient(direct, flavor=plc_flavor)
         mbx = ctl.open()
         # Int2 of this client's own block, already answered (the claim): changing it beside
         # the same Seq runs nothing
@@ -168,7 +169,8 @@ def test_a_read_whose_reply_is_cut_is_sent_again(proxy_for: Callable[..., Proxy]
 
 
 def test_bytes_after_a_reply_are_never_taken_for_the_next_reply(
-        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int]) -> None:
+        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int],
+        plc_flavor: str) -> None:
     # The worst tail: a whole frame that fits the next request (its transaction id, function
     # code and count) with other data.
     def change(data: bytes) -> tuple[bytes, bytes]:
@@ -178,7 +180,7 @@ def test_bytes_after_a_reply_are_never_taken_for_the_next_reply(
     proxy = proxy_for(fault=_only_first(0, 0, change))
     with PlcClient(*plc_address) as direct:
         # a register that stays put between two reads: a command word of an unused mailbox
-        register = ArmControllerClient(direct).registers["MBX08CODE"].address
+        register = ArmControllerClient(direct, flavor=plc_flavor).registers["MBX08CODE"].address
         truth = direct.read_holding_registers(register, 1)[0]
     assert truth != 0xBEEF
     with PlcClient(*proxy.address, timeout_s=2.0) as client:
@@ -188,7 +190,8 @@ def test_bytes_after_a_reply_are_never_taken_for_the_next_reply(
 
 
 def test_a_command_whose_write_reply_is_lost_runs_once(
-        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int]) -> None:
+        proxy_for: Callable[..., Proxy], plc_address: tuple[str, int],
+        plc_flavor: str) -> None:
     """The FC16 of a command lands and its reply is lost: PlcClient raises, and the handshake
     reads its block back and waits for the answer instead of writing it again."""
     writes = [0]
@@ -201,13 +204,32 @@ def test_a_command_whose_write_reply_is_lost_runs_once(
         return data, b""
     proxy = proxy_for(fault=fault)
     with PlcClient(*plc_address) as direct:
-        monitor = ArmControllerClient(direct)
+        monitor = ArmControllerClient(direct, flavor=plc_flavor)
         before = monitor.status().commands_answered
         with PlcClient(*proxy.address, timeout_s=1.0) as bus:
-            ctl = ArmControllerClient(bus, timeout_s=10.0)
+            ctl = ArmControllerClient(bus, timeout_s=10.0, flavor=plc_flavor)
             ctl.open()
             assert ctl.hello().error_id == ERR_OK
             assert ctl.answered == 2  # the claim and the Hello, each answered once
             assert monitor.status().commands_answered - before == 2
             assert writes[0] == 2  # the Hello's block was not written again
             ctl.close()
+
+
+@pytest.mark.parametrize("garble", ["function code", "count"])
+def test_a_reply_that_does_not_fit_its_read_is_not_taken(proxy_for: Callable[..., Proxy],
+                                                         garble: str) -> None:
+    # A frame that is not the answer to this request (another one's, or a stale buffer's)
+    # under the request's own transaction id: an FC16 echo, or one register fewer.
+    def change(data: bytes) -> tuple[bytes, bytes]:
+        tid, pid, _, unit = struct.unpack(">HHHB", data[:7])
+        if garble == "function code":
+            pdu = struct.pack(">BHH", 16, 0, 2)
+        else:
+            pdu = data[7:8] + bytes([data[8] - 2]) + data[9:-2]
+        return struct.pack(">HHHB", tid, pid, len(pdu) + 1, unit) + pdu, b""
+    proxy = proxy_for(fault=_only_first(0, 1, change))
+    with PlcClient(*proxy.address, timeout_s=2.0) as client:
+        client.read_holding_registers(ANY_REGISTER, 2)
+        assert len(client.read_holding_registers(ANY_REGISTER, 2)) == 2  # garbled, read again
+    assert proxy.connections == 2
