@@ -56,6 +56,9 @@ class PlcClient:
     # most timeout_s): OpenPLC v3's accept loop can hand a new socket to no thread at all (two
     # threads get the next one), and such a connection is never answered.
     first_reply_s: float = 1.0
+    # False: a read is tried once, its reply awaited timeout_s (a probe that tells a silent
+    # peer from a garbled one by the time it waited)
+    retry_reads: bool = True
     _served: bool = field(default=False, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -147,7 +150,8 @@ class PlcClient:
                 self._open_served(deadline)
             elif self._client.socket is None:
                 self.connect()
-            fresh = not self._served
+            retry = function in _READS and self.retry_reads
+            fresh = not self._served and retry
             if fresh:
                 self._set_reply_timeout(max(0.05, min(self.first_reply_s,
                                                       deadline - time.monotonic())))
@@ -177,7 +181,7 @@ class PlcClient:
                     raise ModbusError(function, response.exception_code)
                 return response
             self.close()
-            if function not in _READS or (time.monotonic() >= deadline and tries > 1):
+            if not retry or (time.monotonic() >= deadline and tries > 1):
                 raise ModbusIoError(f"{self.host}:{self.port}: function {function}: {problem}")
             # a read is sent again at least once, however long its first reply was awaited
             deadline = max(deadline, time.monotonic() + self.timeout_s) if tries == 1 \
