@@ -53,9 +53,10 @@ class CountingPlcClient(PlcClient):
 
     transactions = 0
 
-    def _check(self, request: Callable[[], Any], function: int) -> Any:
+    def _check(self, request: Callable[[], Any], function: int,
+               consistent: Callable[[Any], bool] | None = None) -> Any:
         self.transactions += 1
-        return super()._check(request, function)
+        return super()._check(request, function, consistent)
 
 
 @dataclass

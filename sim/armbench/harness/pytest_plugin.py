@@ -314,7 +314,7 @@ def probe(host: str, port: int, timeout_s: float = PROBE_TIMEOUT_S) -> str | Non
         return exc.strerror or str(exc) or type(exc).__name__
     start = time.monotonic()
     try:
-        with PlcClient(host, port, timeout_s=timeout_s) as client:
+        with PlcClient(host, port, timeout_s=timeout_s, retry_reads=False) as client:
             client.read_holding_registers(0, 1)
     except ModbusError:
         return None  # an exception response is still a Modbus server answering

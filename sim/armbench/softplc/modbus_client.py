@@ -11,6 +11,8 @@ and reads lists of more than 8 coils in the wrong bit order, so 3.11 is the olde
 
 from __future__ import annotations
 
+import socket
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -34,6 +36,12 @@ class ModbusIoError(Exception):
     """No usable answer: not connected, timeout, or a garbled response."""
 
 
+# Function codes whose request changes nothing in the PLC: after a lost or garbled reply they
+# are sent again on a new connection. Writes never are (a write may have landed even when its
+# reply was lost; the caller decides, e.g. the mailbox handshake reads its block back).
+_READS = frozenset({1, 2, 3, 4})
+
+
 @dataclass
 class PlcClient:
     """Synchronous client; use as a context manager or call :meth:`connect`/:meth:`close`."""
@@ -44,6 +52,15 @@ class PlcClient:
     device_id: int = 1
     _client: ModbusTcpClient = field(init=False, repr=False)
 
+    # The first reply on a new connection is awaited this long (doubled at each new try, at
+    # most timeout_s): OpenPLC v3's accept loop can hand a new socket to no thread at all (two
+    # threads get the next one), and such a connection is never answered.
+    first_reply_s: float = 1.0
+    # False: a read is tried once, its reply awaited timeout_s (a probe that tells a silent
+    # peer from a garbled one by the time it waited)
+    retry_reads: bool = True
+    _served: bool = field(default=False, init=False, repr=False)
+
     def __post_init__(self) -> None:
         # retries=0: a request that timed out may still have been executed; resending a write
         # silently would hide that from the tests.
@@ -53,10 +70,12 @@ class PlcClient:
 
     # pymodbus 3.16 leaves ModbusTcpClient.connect/close unannotated.
     def connect(self) -> None:
+        self._served = False
         if not self._client.connect():  # type: ignore[no-untyped-call]
             raise ModbusIoError(f"cannot connect to {self.host}:{self.port}")
 
     def close(self) -> None:
+        self._served = False
         self._client.close()  # type: ignore[no-untyped-call]
 
     def __enter__(self) -> PlcClient:
@@ -66,44 +85,133 @@ class PlcClient:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _check(self, request: Callable[[], ModbusPDU], function: int) -> ModbusPDU:
-        """Send ``request``; pymodbus's own errors (connection lost, no answer) become
-        :class:`ModbusIoError`, a Modbus exception reply :class:`ModbusError`."""
+    def _set_reply_timeout(self, seconds: float) -> None:
+        self._client.comm_params.timeout_connect = seconds
+
+    def _stream_dirty(self) -> bool:
+        """Bytes wait on the connection while no request is outstanding: the tail of a reply
+        sent longer than its MBAP length says (OpenPLC v3 writes each reply with a length
+        that another connection's thread may have just set). Whatever comes next on this
+        stream cannot be trusted."""
+        sock = self._client.socket
+        if sock is None:
+            return False
         try:
-            response = request()
-        except ModbusException as exc:
-            raise ModbusIoError(f"{self.host}:{self.port}: function {function}: {exc}") from exc
-        except OSError as exc:
-            # pymodbus's sync client lets a reset connection (ECONNRESET from recv) through
-            # as it is; it is a broken connection like any other, which callers reconnect
-            # after (OpenPLC v3's accept race resets them: a soak client died of it)
-            raise ModbusIoError(f"{self.host}:{self.port}: function {function}: "
-                                f"connection broken ({exc})") from exc
-        if response.isError():
-            raise ModbusError(function, response.exception_code)
-        return response
+            return bool(sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT))
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError:
+            return True  # reset: reconnect before sending
+
+    def _open_served(self, deadline: float) -> None:
+        """Make sure the connection is open and has answered once: a new connection is
+        proved by a read (exception replies count: the server read the request), reconnecting
+        while it stays silent, so a write is never sent on a connection nobody serves."""
+        wait = self.first_reply_s
+        while True:
+            if self._client.socket is None:
+                self.connect()
+            if self._served:
+                return
+            self._set_reply_timeout(max(0.05, min(wait, deadline - time.monotonic())))
+            try:
+                response = self._client.read_holding_registers(0, count=1,
+                                                               device_id=self.device_id)
+                consistent = response.function_code & 0x7F == 3
+            except (ModbusException, OSError):
+                consistent = False
+            finally:
+                self._set_reply_timeout(self.timeout_s)
+            if consistent and not self._stream_dirty():
+                self._served = True
+                return
+            self.close()
+            if time.monotonic() >= deadline:
+                raise ModbusIoError(f"{self.host}:{self.port}: no answer on a new connection "
+                                    f"for {self.timeout_s:g} s")
+            wait = min(2.0 * wait, self.timeout_s)
+
+    def _check(self, request: Callable[[], ModbusPDU], function: int,
+               consistent: Callable[[ModbusPDU], bool] | None = None) -> ModbusPDU:
+        """Send ``request``; pymodbus's own errors (connection lost, no answer) become
+        :class:`ModbusIoError`, a Modbus exception reply :class:`ModbusError`.
+
+        A reply that does not fit the request (another function code, another count or
+        address: ``consistent`` says), or bytes left over after it, drops the connection, as
+        does any failure: a garbled stream is never read on. Reads (functions 1-4) are then
+        sent again on a new connection until ``timeout_s`` (at least once); writes raise."""
+        deadline = time.monotonic() + self.timeout_s
+        tries = 0
+        while True:
+            tries += 1
+            if self._served and self._stream_dirty():
+                self.close()
+            if function not in _READS:
+                self._open_served(deadline)
+            elif self._client.socket is None:
+                self.connect()
+            retry = function in _READS and self.retry_reads
+            fresh = not self._served and retry
+            if fresh:
+                self._set_reply_timeout(max(0.05, min(self.first_reply_s,
+                                                      deadline - time.monotonic())))
+            problem = ""
+            try:
+                response = request()
+            except ModbusException as exc:
+                problem = str(exc)
+            except OSError as exc:
+                # pymodbus's sync client lets a reset connection (ECONNRESET from recv)
+                # through as it is; it is a broken connection like any other (OpenPLC v3's
+                # accept race resets them: a soak client died of it)
+                problem = f"connection broken ({exc})"
+            finally:
+                if fresh:
+                    self._set_reply_timeout(self.timeout_s)
+            if not problem:
+                if response.function_code & 0x7F != function:
+                    problem = (f"garbled reply: function code {response.function_code} "
+                               f"to a request of function {function}")
+                elif not response.isError() and consistent is not None \
+                        and not consistent(response):
+                    problem = "garbled reply: its contents do not fit the request"
+            if not problem:
+                self._served = True
+                if response.isError():
+                    raise ModbusError(function, response.exception_code)
+                return response
+            self.close()
+            if not retry or (time.monotonic() >= deadline and tries > 1):
+                raise ModbusIoError(f"{self.host}:{self.port}: function {function}: {problem}")
+            # a read is sent again at least once, however long its first reply was awaited
+            deadline = max(deadline, time.monotonic() + self.timeout_s) if tries == 1 \
+                else deadline
 
     # -- raw tables ------------------------------------------------------------------------
 
     def read_coils(self, address: int, count: int = 1) -> list[bool]:
         r = self._check(lambda: self._client.read_coils(address, count=count,
-                                                       device_id=self.device_id), 1)
+                                                       device_id=self.device_id), 1,
+                        lambda r: len(r.bits) == 8 * -(-count // 8))
         # pymodbus pads bits to a whole byte; the caller asked for exactly `count`.
         return list(r.bits[:count])
 
     def read_discrete_inputs(self, address: int, count: int = 1) -> list[bool]:
         r = self._check(lambda: self._client.read_discrete_inputs(
-            address, count=count, device_id=self.device_id), 2)
+            address, count=count, device_id=self.device_id), 2,
+            lambda r: len(r.bits) == 8 * -(-count // 8))
         return list(r.bits[:count])
 
     def read_holding_registers(self, address: int, count: int = 1) -> list[int]:
         r = self._check(lambda: self._client.read_holding_registers(
-            address, count=count, device_id=self.device_id), 3)
+            address, count=count, device_id=self.device_id), 3,
+            lambda r: len(r.registers) == count)
         return list(r.registers)
 
     def read_input_registers(self, address: int, count: int = 1) -> list[int]:
         r = self._check(lambda: self._client.read_input_registers(
-            address, count=count, device_id=self.device_id), 4)
+            address, count=count, device_id=self.device_id), 4,
+            lambda r: len(r.registers) == count)
         return list(r.registers)
 
     def read_table(self, table: str, address: int, count: int = 1) -> list[int]:
@@ -121,19 +229,23 @@ class PlcClient:
         raise ValueError(f"no Modbus table {table!r}: holding, input, coil or discrete")
 
     def write_coil(self, address: int, value: bool) -> None:
-        self._check(lambda: self._client.write_coil(address, value, device_id=self.device_id), 5)
+        self._check(lambda: self._client.write_coil(address, value, device_id=self.device_id), 5,
+                    lambda r: r.address == address)
 
     def write_register(self, address: int, value: int) -> None:
         self._check(lambda: self._client.write_register(address, value,
-                                                        device_id=self.device_id), 6)
+                                                        device_id=self.device_id), 6,
+                    lambda r: r.address == address and r.registers == [value])
 
     def write_coils(self, address: int, values: Sequence[bool]) -> None:
         self._check(lambda: self._client.write_coils(address, list(values),
-                                                     device_id=self.device_id), 15)
+                                                     device_id=self.device_id), 15,
+                    lambda r: (r.address, r.count) == (address, len(values)))
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
         self._check(lambda: self._client.write_registers(address, list(values),
-                                                         device_id=self.device_id), 16)
+                                                         device_id=self.device_id), 16,
+                    lambda r: (r.address, r.count) == (address, len(values)))
 
     # -- located variables -----------------------------------------------------------------
 
