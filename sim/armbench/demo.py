@@ -289,8 +289,13 @@ def run(points: int = 360, radius: float = 40.0, plane: str = "xy",
 
 
 def _ms(ns: float) -> str:
-    """A duration for a reader: microseconds below 1 ms, else milliseconds."""
-    return f"{ns / 1e3:.0f} us" if ns < 1e6 else f"{ns / 1e6:.3g} ms"
+    """A duration for a reader: microseconds below 1 ms, milliseconds below 1 s, else
+    seconds (never an exponent: 1.06e+03 ms reads badly)."""
+    if ns < 1e6:
+        return f"{ns / 1e3:.0f} us"
+    if ns < 999.5e6:
+        return f"{ns / 1e6:.3g} ms"
+    return f"{ns / 1e9:.3g} s" if ns < 999.5e9 else f"{ns / 1e9:.0f} s"
 
 
 def scan_report(s: TaskStats, wall_s: float, largest_step_deg: float | None = None

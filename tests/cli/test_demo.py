@@ -51,12 +51,20 @@ def test_a_calm_machine_says_so() -> None:
     assert "releases missed" not in words and "largest servo step" not in words
 
 
+def test_durations_read_without_an_exponent() -> None:
+    # a loaded machine's jitter reached 1.06e+03 ms in a run; a reader gets seconds instead
+    from armbench.demo import _ms
+
+    assert [_ms(v) for v in (5e5, 1.5e6, 152e6, 999.4e6, 1.06e9, 12345e9)] == [
+        "500 us", "1.5 ms", "152 ms", "999 ms", "1.06 s", "12345 s"]
+
+
 def test_a_short_demo_explains_its_figures(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--points", "8", "--no-plots"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
     task = next(i for i, line in enumerate(lines) if line.startswith("PLC task MainTask: "))
-    assert re.search(r"start jitter p50 [\d.]+ [um]s, p99 [\d.]+ [um]s, max [\d.]+ [um]s",
+    assert re.search(r"start jitter p50 [\d.]+ [um]?s, p99 [\d.]+ [um]?s, max [\d.]+ [um]?s",
                      lines[task]), lines[task]
     explained = " ".join(" ".join(lines[task + 1:]).split())
     assert "Jitter is how late a scan started" in explained, out

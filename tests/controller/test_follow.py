@@ -19,6 +19,7 @@ deg, 3.7 mm).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -237,7 +238,13 @@ def test_other_client_stop_ends_follow(fast_controller: FastPlc, ctl: ArmControl
     assert m.kind == KIND_STOP and not m.busy
     assert fs.state == 0 and fs.aborted
     steps = fs.steps
-    rig.wait_samples(250)  # the hand goes on: the arm does not
+    # the hand goes on for 250 scans after the stop ended: the arm does not (counted in scans,
+    # not samples: under load the Modbus round trips above can outlast sample 250)
+    settled = rig.scans + 250
+    deadline = time.monotonic() + 60.0
+    while rig.scans < settled and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert rig.scans >= settled, "the soft PLC ran fewer than 250 scans in 60 s"
     rows = rig.take_rows()
     rig.pause()
     assert ctl.follow_state().steps == steps

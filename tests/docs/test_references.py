@@ -48,6 +48,7 @@ NOT_OURS = {
     "webserver/core/psm/main.py", "webserver/core/psm/psm.py",
     "bistable.txt", "edge_detection.txt", "pid_st.txt", "timer.txt", "background_installer.sh",
     "iec_std_lib.h", "iec_std_functions.h", "webserver/openplc.py",
+    "Config0.c", "Res0.c", "POUS.h",  # MatIEC's generated C files
     "run-st.sh",  # the MatIEC run script a user provides (MATIEC_RUN)
     # OpenPLC v4's runtime and pymodbus's, read for docs/modbus-parity.md's v4 rules
     "core/src/drivers/plugins/python/modbus_slave/simple_modbus.py", "simple_modbus.py",
