@@ -122,21 +122,54 @@ END_CONFIGURATION
 """
 
 
-def _source(folder: Path) -> Path:
-    path = folder / "amc_main.st"
+def _source(folder: Path, program: str = "") -> Path:
+    """The layer's files and ``program`` (the axis program by default) as one upload file."""
+    stem = "amc_group_main" if program else "amc_main"
+    path = folder / f"{stem}.st"
     path.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in FILES)
-                    + PROGRAM, encoding="utf-8")
+                    + (program or PROGRAM), encoding="utf-8")
     return path
 
 
-def _bench(path: Path) -> dict[str, float]:
+def _bench(path: Path, scans: int = 0, outputs: list[str] | None = None) -> dict[str, float]:
+    """The program's ``outputs`` after ``scans`` scans (the axis program's by default) on the
+    bench's compiler."""
     from armbench.compiler import compile_files
     mod = compile_files([path])
     prog = mod.instance("instance0")
     mod.config_init()
-    for k in range(SCANS):
+    for k in range(scans or SCANS):
         mod.run_task_index(0, k * 20_000_000)
-    return {n: float(prog.get(n)) for n in OUTPUTS}
+    return {n: float(prog.get(n)) for n in outputs or OUTPUTS}
+
+
+def _assert_real_matiec_as_bench(path: Path, outputs: list[str]) -> None:
+    """The real OpenPLC v3 build runs SCANS scans of ``path`` to the bench's values."""
+    bash = shutil.which("bash") or "/bin/bash"
+    run_st = run_tool()
+    assert run_st is not None
+    run = subprocess.run([bash, str(run_st), "-n", str(SCANS), str(path)], capture_output=True,
+                         text=True, timeout=1200, check=False)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    real = {k.upper(): v for k, v in
+            re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M)}
+    bench = _bench(path, SCANS, outputs)
+    for name in outputs:
+        value = real[name]
+        num = 1.0 if value == "TRUE" else 0.0 if value == "FALSE" else float(value)
+        assert num == pytest.approx(bench[name], rel=1e-12, abs=1e-12), name
+
+
+def _assert_strucpp_builds(path: Path) -> None:
+    """STruC++ compiles ``path`` and g++ builds its C++ with OpenPLC v4's flags."""
+    tool = find_strucpp()
+    assert tool is not None
+    out = path.with_suffix(".cpp")
+    res = tool.compile(path, out)
+    assert res.ok, res.output[-3000:]
+    obj = tool.cxx(*V4_CXX_FLAGS, "-DSTRUCPP_THREADED", "-c", str(out), "-o",
+                   str(path.with_suffix(".o")))
+    assert obj.ok, obj.output[-3000:]
 
 
 def test_bench_run_of_the_program_is_the_scripted_story(tmp_path: Path) -> None:
@@ -153,33 +186,12 @@ def test_bench_run_of_the_program_is_the_scripted_story(tmp_path: Path) -> None:
 
 @pytest.mark.skipif(run_tool() is None, reason=MATIEC_SKIP)
 def test_real_matiec_runs_the_layer_as_the_bench(tmp_path: Path) -> None:
-    path = _source(tmp_path)
-    bash = shutil.which("bash") or "/bin/bash"
-    run_st = run_tool()
-    assert run_st is not None
-    run = subprocess.run([bash, str(run_st), "-n", str(SCANS), str(path)], capture_output=True,
-                         text=True, timeout=1200, check=False)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    real = {k.upper(): v for k, v in
-            re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M)}
-    bench = _bench(path)
-    for name in OUTPUTS:
-        value = real[name]
-        num = 1.0 if value == "TRUE" else 0.0 if value == "FALSE" else float(value)
-        assert num == pytest.approx(bench[name], rel=1e-12, abs=1e-12), name
+    _assert_real_matiec_as_bench(_source(tmp_path), OUTPUTS)
 
 
 @pytest.mark.skipif(find_strucpp() is None, reason=STRUCPP_SKIP)
 def test_strucpp_builds_the_layer(tmp_path: Path) -> None:
-    tool = find_strucpp()
-    assert tool is not None
-    path = _source(tmp_path)
-    out = tmp_path / "amc_main.cpp"
-    res = tool.compile(path, out)
-    assert res.ok, res.output[-3000:]
-    obj = tool.cxx(*V4_CXX_FLAGS, "-DSTRUCPP_THREADED", "-c", str(out), "-o",
-                   str(tmp_path / "amc_main.o"))
-    assert obj.ok, obj.output[-3000:]
+    _assert_strucpp_builds(_source(tmp_path))
 
 
 # ------------------------------------------------------------------------ the group layer
@@ -322,20 +334,11 @@ END_CONFIGURATION
 
 
 def _group_source(folder: Path) -> Path:
-    path = folder / "amc_group_main.st"
-    path.write_text("\n".join((ST / f).read_text(encoding="utf-8") for f in FILES)
-                    + GROUP_PROGRAM, encoding="utf-8")
-    return path
+    return _source(folder, GROUP_PROGRAM)
 
 
 def _group_bench(path: Path, scans: int) -> dict[str, float]:
-    from armbench.compiler import compile_files
-    mod = compile_files([path])
-    prog = mod.instance("instance0")
-    mod.config_init()
-    for k in range(scans):
-        mod.run_task_index(0, k * 20_000_000)
-    return {n: float(prog.get(n)) for n in GROUP_OUTPUTS}
+    return _bench(path, scans, GROUP_OUTPUTS)
 
 
 def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) -> None:
@@ -371,30 +374,10 @@ def test_bench_run_of_the_group_program_is_the_scripted_story(tmp_path: Path) ->
 
 @pytest.mark.skipif(run_tool() is None, reason=MATIEC_SKIP)
 def test_real_matiec_runs_the_group_layer_as_the_bench(tmp_path: Path) -> None:
-    path = _group_source(tmp_path)
-    bash = shutil.which("bash") or "/bin/bash"
-    run_st = run_tool()
-    assert run_st is not None
-    run = subprocess.run([bash, str(run_st), "-n", str(SCANS), str(path)], capture_output=True,
-                         text=True, timeout=1200, check=False)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    real = {k.upper(): v for k, v in
-            re.findall(r"^instance0\.(\w+)=(\S+)$", run.stdout, flags=re.M)}
-    bench = _group_bench(path, SCANS)
-    for name in GROUP_OUTPUTS:
-        value = real[name]
-        num = 1.0 if value == "TRUE" else 0.0 if value == "FALSE" else float(value)
-        assert num == pytest.approx(bench[name], rel=1e-12, abs=1e-12), name
+    _assert_real_matiec_as_bench(_group_source(tmp_path), GROUP_OUTPUTS)
 
 
 @pytest.mark.skipif(find_strucpp() is None, reason=STRUCPP_SKIP)
 def test_strucpp_builds_the_group_layer(tmp_path: Path) -> None:
-    tool = find_strucpp()
-    assert tool is not None
-    path = _group_source(tmp_path)
-    out = tmp_path / "amc_group_main.cpp"
-    res = tool.compile(path, out)
-    assert res.ok, res.output[-3000:]
-    obj = tool.cxx(*V4_CXX_FLAGS, "-DSTRUCPP_THREADED", "-c", str(out), "-o",
-                   str(tmp_path / "amc_group_main.o"))
-    assert obj.ok, obj.output[-3000:]
+    _assert_strucpp_builds(_group_source(tmp_path))
+
